@@ -1,0 +1,401 @@
+"""Case files: the TOML schema, strict validation, overrides and the shipped cases.
+
+A case is a TOML file with the sections ``[geometry]``, ``[boundary]``, ``[material]``,
+``[mesh]``, ``[solve]`` and ``[output]`` (see ``SCHEMA`` and the README). Validation is
+strict: an unknown key, a wrong type or an out-of-range value is a :class:`CaseError` that
+names the file, the dotted key, the value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import tomli_w
+
+from .errors import CaseError
+
+ELEMENTS = ("P1", "P2", "Q1", "Q2")
+SHAPES = ("square", "rectangle", "parallelogram", "polygon", "mesh")
+METHODS = ("auto", "arpack", "dense")
+
+
+# ----------------------------------------------------------------------------- field checks
+@dataclass(frozen=True)
+class Key:
+    """One key of the schema: its check, its default (``REQUIRED`` if none) and its meaning."""
+
+    check: Callable[[Any], Any]
+    default: Any
+    doc: str
+
+
+REQUIRED = object()
+
+
+class _Bad(ValueError):
+    """Raised by a check: the text says what is allowed."""
+
+
+def _number(lo=-math.inf, hi=math.inf, *, lo_open=False, hi_open=False):
+    def check(value):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise _Bad("a number")
+        value = float(value)
+        low_ok = value > lo if lo_open else value >= lo
+        high_ok = value < hi if hi_open else value <= hi
+        if not (math.isfinite(value) and low_ok and high_ok):
+            left = "(" if lo_open else "["
+            right = ")" if hi_open else "]"
+            raise _Bad(f"a finite number in {left}{lo:g}, {hi:g}{right}")
+        return value
+
+    return check
+
+
+def _integer(lo, hi):
+    def check(value):
+        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+            raise _Bad(f"an integer in [{lo}, {hi}]")
+        return value
+
+    return check
+
+
+def _choice(*allowed):
+    def check(value):
+        if value not in allowed:
+            raise _Bad("one of " + ", ".join(repr(a) for a in allowed))
+        return value
+
+    return check
+
+
+def _boolean(value):
+    if not isinstance(value, bool):
+        raise _Bad("true or false")
+    return value
+
+
+def _string(value):
+    if not isinstance(value, str) or not value:
+        raise _Bad("a non-empty string")
+    return value
+
+
+def _names(value):
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not value or not all(
+        isinstance(v, str) and v for v in value
+    ):
+        raise _Bad("a non-empty list of edge names (strings)")
+    if len(set(value)) != len(value):
+        raise _Bad("a list of distinct edge names")
+    return list(value)
+
+
+def _points(value):
+    ok = isinstance(value, list) and len(value) >= 3 and all(
+        isinstance(p, list) and len(p) == 2
+        and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+                for c in p)
+        for p in value
+    )
+    if not ok:
+        raise _Bad("a list of at least 3 points [x, y] with finite numbers")
+    return [[float(c) for c in p] for p in value]
+
+
+def _index_rows(width):
+    def check(value):
+        ok = isinstance(value, list) and len(value) >= 1 and all(
+            isinstance(r, list) and len(r) in width
+            and all(isinstance(i, int) and not isinstance(i, bool) and i >= 0 for i in r)
+            for r in value
+        )
+        if not ok:
+            sizes = " or ".join(str(w) for w in width)
+            raise _Bad(f"a non-empty list of rows of {sizes} node indices (integers >= 0)")
+        return value
+
+    return check
+
+
+def _edge_table(value):
+    if not isinstance(value, dict) or not value:
+        raise _Bad("a table: edge name = [[node, node], ...]")
+    out = {}
+    for name, rows in value.items():
+        try:
+            out[name] = _index_rows((2,))(rows)
+        except _Bad as bad:
+            raise _Bad(f"for edge {name!r}: {bad}") from None
+    return out
+
+
+def _string_list(value):
+    if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
+        raise _Bad("a list of non-empty strings")
+    return list(value)
+
+
+def _gamma(value):
+    if isinstance(value, bool) or value not in (1, -1):
+        raise _Bad("1 or -1")
+    return int(value)
+
+
+POSITIVE = _number(0.0, lo_open=True)
+
+SCHEMA: dict[str, dict[str, Key]] = {
+    "geometry": {
+        "shape": Key(_choice(*SHAPES), REQUIRED, "the body: " + ", ".join(SHAPES)),
+        "side": Key(POSITIVE, 1.0, "square: side length"),
+        "width": Key(POSITIVE, REQUIRED, "rectangle: width"),
+        "height": Key(POSITIVE, REQUIRED, "rectangle, parallelogram: height H"),
+        "base": Key(POSITIVE, REQUIRED, "parallelogram: base length L (the bottom edge)"),
+        "offset": Key(_number(), REQUIRED, "parallelogram: signed shift L' of the top edge"),
+        "vertices": Key(_points, REQUIRED, "polygon: [[x, y], ...]"),
+        "edge_names": Key(_string_list, None, "polygon: name of edge i (vertex i -> i+1)"),
+        "nodes": Key(_points, REQUIRED, "mesh: node coordinates [[x, y], ...]"),
+        "triangles": Key(_index_rows((3,)), None, "mesh: triangles [[a, b, c], ...]"),
+        "quads": Key(_index_rows((4,)), None, "mesh: quadrilaterals [[a, b, c, d], ...]"),
+        "edges": Key(_edge_table, REQUIRED, "mesh: named boundary edges {name = [[a, b], ...]}"),
+    },
+    "boundary": {
+        "contact": Key(_names, ["bottom"], "edges of Gamma_C (one straight segment)"),
+        "dirichlet": Key(_names, ["top"], "clamped edges Gamma_D (at least one)"),
+    },
+    "material": {
+        "E": Key(POSITIVE, 1.0, "Young modulus (the eigenvalues do not depend on it)"),
+        "nu": Key(_number(0.0, 0.5, hi_open=True), 0.3, "Poisson ratio in [0, 0.5)"),
+    },
+    "mesh": {
+        "element": Key(_choice(*ELEMENTS), "P1", "finite element: " + ", ".join(ELEMENTS)),
+        "size": Key(POSITIVE, REQUIRED, "target element size h (gmsh shapes)"),
+        "structured": Key(_boolean, False, "transfinite mesh (4-vertex shapes only)"),
+        "grading": Key(_number(0.0, 1.0, lo_open=True), None,
+                       "size factor g in (0, 1] at the ends of Gamma_C"),
+    },
+    "solve": {
+        "method": Key(_choice(*METHODS), "auto", "eigen solver: " + ", ".join(METHODS)),
+        "count": Key(_integer(1, 1000), 1, "number of lowest positive critical coefficients"),
+        "shift": Key(_number(), 0.0, "look for eigenvalues nearest this friction value"),
+        "gamma": Key(_gamma, 1, "slip sign of every contact node (+1 or -1)"),
+        "tol": Key(_number(0.0, 1e-2), 0.0, "ARPACK relative tolerance (0: machine precision)"),
+        "maxiter": Key(_integer(1, 10**7), None, "ARPACK iteration cap (default: ARPACK's)"),
+        "real_tol": Key(_number(0.0, 1e-2), 1e-8, "|Im a| <= real_tol |a| counts as real"),
+    },
+    "output": {
+        "file": Key(_string, None, "HDF5 result file (default: <case name>.h5)"),
+        "modes": Key(_boolean, True, "store the eigenfunctions of the critical eigenvalues"),
+    },
+}
+
+TOP_LEVEL = {"title": Key(_string, None, "a title for tables and plots")}
+
+SHAPE_KEYS = {
+    "square": {"side"},
+    "rectangle": {"width", "height"},
+    "parallelogram": {"base", "height", "offset"},
+    "polygon": {"vertices", "edge_names"},
+    "mesh": {"nodes", "triangles", "quads", "edges"},
+}
+
+# CLI override name -> dotted key
+OVERRIDES = {
+    "nu": "material.nu",
+    "element": "mesh.element",
+    "size": "mesh.size",
+    "count": "solve.count",
+    "shift": "solve.shift",
+    "method": "solve.method",
+    "output": "output.file",
+}
+
+
+# ----------------------------------------------------------------------------- the case
+@dataclass(frozen=True)
+class Case:
+    """A validated case: one plain dict per section, every default filled in."""
+
+    name: str
+    source: str
+    geometry: dict
+    boundary: dict
+    material: dict
+    mesh: dict
+    solve: dict
+    output: dict
+    title: str | None = None
+    text: str = ""
+    raw: dict = field(default_factory=dict, repr=False)
+
+    def to_toml(self) -> str:
+        """The effective case (overrides applied) as TOML: re-running it gives the same run."""
+        return tomli_w.dumps(self.raw)
+
+    def with_overrides(self, overrides: dict[str, Any] | None) -> "Case":
+        """A new validated case with dotted-key ``overrides`` applied."""
+        return from_dict(self.raw, source=self.source, name=self.name, text=self.text,
+                         overrides=overrides)
+
+
+def _shipped_dir() -> Path:
+    installed = Path(__file__).parent / "cases"
+    return installed if installed.is_dir() else Path(__file__).parent.parent / "cases"
+
+
+def shipped_cases() -> dict[str, Path]:
+    """Built-in case names (``inclined-body``) -> shipped TOML files."""
+    return {p.stem.replace("_", "-"): p for p in sorted(_shipped_dir().glob("*.toml"))}
+
+
+def resolve(case: str | Path) -> Path:
+    """A path to an existing case file, or the file of a shipped case name."""
+    path = Path(case)
+    if path.is_file():
+        return path
+    shipped = shipped_cases()
+    key = str(case).replace("_", "-").removesuffix(".toml")
+    if key in shipped and not path.exists():
+        return shipped[key]
+    if path.exists():
+        raise CaseError("is not a file", file=str(path))
+    names = ", ".join(shipped)
+    raise CaseError(f"no such case file, and not a shipped case name ({names})", file=str(path))
+
+
+def load_case(case: str | Path, *, overrides: dict[str, Any] | None = None) -> Case:
+    """Read and validate a case file (or a shipped case name), with dotted-key overrides."""
+    path = resolve(case)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CaseError(f"cannot read the case file: {exc}", file=str(path)) from None
+    return loads_case(text, source=str(path), name=path.stem, overrides=overrides)
+
+
+def loads_case(text: str, *, source: str = "<string>", name: str = "case",
+               overrides: dict[str, Any] | None = None) -> Case:
+    """Parse and validate TOML text."""
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError(f"TOML syntax error: {exc}", file=source) from None
+    return from_dict(raw, source=source, name=name, text=text, overrides=overrides)
+
+
+def _apply_overrides(raw: dict, overrides: dict[str, Any], source: str) -> dict:
+    merged = {k: dict(v) if isinstance(v, dict) else v for k, v in raw.items()}
+    for dotted, value in overrides.items():
+        if value is None:
+            continue
+        section, _, key = dotted.partition(".")
+        if section not in SCHEMA or key not in SCHEMA[section]:
+            raise CaseError(f"unknown override key {dotted!r}", file=source, key=dotted)
+        if not isinstance(merged.get(section, {}), dict):
+            raise CaseError("must be a table", file=source, key=section)
+        merged.setdefault(section, {})[key] = value
+    return merged
+
+
+def from_dict(raw: dict, *, source: str = "<dict>", name: str = "case", text: str = "",
+              overrides: dict[str, Any] | None = None) -> Case:
+    """Validate a parsed case dict; return a :class:`Case` with all defaults filled."""
+    if overrides:
+        raw = _apply_overrides(raw, overrides, source)
+    for key in raw:
+        if key not in SCHEMA and key not in TOP_LEVEL:
+            allowed = ", ".join(f"[{s}]" for s in SCHEMA) + ", " + ", ".join(TOP_LEVEL)
+            raise CaseError(f"unknown section or key {key!r}; allowed: {allowed}",
+                            file=source, key=key)
+    title = _check(TOP_LEVEL["title"], raw["title"], source, "title") if "title" in raw else None
+    if not isinstance(raw.get("geometry"), dict):
+        raise CaseError("missing section [geometry] (a table with at least 'shape')",
+                        file=source, key="geometry")
+    sections = {}
+    for section, keys in SCHEMA.items():
+        given = raw.get(section, {})
+        if not isinstance(given, dict):
+            raise CaseError("must be a table", file=source, key=section)
+        active = _active_keys(section, given, source)
+        values = {}
+        for key in given:
+            if key not in keys or key not in active:
+                allowed = ", ".join(sorted(active))
+                raise CaseError(f"unknown key {key!r} here; allowed: {allowed}",
+                                file=source, key=f"{section}.{key}")
+        for key in sorted(active):
+            spec = keys[key]
+            dotted = f"{section}.{key}"
+            if key in given:
+                values[key] = _check(spec, given[key], source, dotted)
+            elif spec.default is REQUIRED:
+                raise CaseError(f"missing key ({spec.doc})", file=source, key=dotted)
+            else:
+                values[key] = spec.default
+        sections[section] = values
+    _check_consistency(sections, source)
+    return Case(name=name, source=source, title=title, text=text, raw=raw, **sections)
+
+
+def _active_keys(section: str, given: dict, source: str) -> set[str]:
+    keys = set(SCHEMA[section])
+    if section == "geometry":
+        shape = _check(SCHEMA["geometry"]["shape"], given.get("shape"), source, "geometry.shape")
+        return {"shape"} | SHAPE_KEYS[shape]
+    if section == "mesh" and given.get("size") is None:
+        keys.discard("size")  # made required again below for gmsh shapes
+    return keys
+
+
+def _check(spec: Key, value, source: str, dotted: str):
+    try:
+        return spec.check(value)
+    except _Bad as bad:
+        raise CaseError(f"got {value!r}; allowed: {bad}", file=source, key=dotted) from None
+
+
+def _check_consistency(s: dict, source: str) -> None:
+    geo, mesh, bnd = s["geometry"], s["mesh"], s["boundary"]
+    shape = geo["shape"]
+    if shape == "mesh":
+        if (geo["triangles"] is None) == (geo["quads"] is None):
+            raise CaseError("give exactly one of 'triangles' or 'quads'", file=source,
+                            key="geometry.triangles")
+        family = ("P1", "P2") if geo["triangles"] is not None else ("Q1", "Q2")
+        if mesh["element"] not in family:
+            raise CaseError(f"got {mesh['element']!r} for this inline mesh; allowed: "
+                            + " or ".join(family), file=source, key="mesh.element")
+        for key in ("size", "structured", "grading"):
+            if mesh.get(key) not in (None, False):
+                raise CaseError(f"does not apply to an inline mesh (shape = 'mesh')",
+                                file=source, key=f"mesh.{key}")
+        names = set(geo["edges"])
+    else:
+        if mesh.get("size") is None:
+            raise CaseError("missing key (target element size h, a positive number)",
+                            file=source, key="mesh.size")
+        if shape == "polygon":
+            n = len(geo["vertices"])
+            names = set(geo["edge_names"] or [f"e{i}" for i in range(n)])
+            if geo["edge_names"] is not None and len(geo["edge_names"]) != n:
+                raise CaseError(f"got {len(geo['edge_names'])} names for {n} edges; allowed: "
+                                "one name per edge", file=source, key="geometry.edge_names")
+        else:
+            names = {"bottom", "right", "top", "left"}
+    for key in ("contact", "dirichlet"):
+        unknown = [e for e in bnd[key] if e not in names]
+        if unknown:
+            raise CaseError(f"unknown edge {unknown[0]!r}; allowed: "
+                            + ", ".join(sorted(names)), file=source, key=f"boundary.{key}")
+    both = set(bnd["contact"]) & set(bnd["dirichlet"])
+    if both:
+        raise CaseError(f"edge {sorted(both)[0]!r} is both contact and Dirichlet; an edge has "
+                        "one condition", file=source, key="boundary.dirichlet")
+    mesh.setdefault("size", None)

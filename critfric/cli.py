@@ -1,0 +1,143 @@
+"""The command line: thin typer commands over the library's plain functions.
+
+Only this module prints or exits: a :class:`CritfricError` becomes one message on stderr and
+its exit code (2 for bad input, 1 for a numerical failure); Ctrl-C exits with 130.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from . import __version__
+from .case import ELEMENTS, METHODS, OVERRIDES, load_case, shipped_cases
+from .errors import CritfricError
+from .results import check_output, default_output, read_summary, write_result
+from .solve import solve_case
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_show_locals=False,
+    help="Critical friction coefficients of Coulomb frictional contact (plane strain).",
+)
+
+
+def _err(message: str) -> None:
+    typer.echo(message, err=True)
+
+
+def _fail(exc: CritfricError) -> None:
+    _err(f"critfric: error: {exc}")
+    raise typer.Exit(exc.exit_code)
+
+
+def _fmt(values, n: int = 4) -> str:
+    shown = ", ".join(f"{v:.10g}" for v in list(values)[:n])
+    more = len(values) - n
+    return (shown + (f", ... (+{more})" if more > 0 else "")) or "-"
+
+
+def _table(rows: list[dict]) -> str:
+    head = f"{'case':<16} {'element':<7} {'nu':>6} {'h':>9} {'n_dofs':>8} {'p':>5} " \
+           f"{'critical (lowest > 0)':>22} {'lowest < 0':>14} {'complex':>7} {'seconds':>8}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        pos = f"{r['positive'][0]:.10f}" if r["positive"] else "none"
+        neg = f"{r['negative'][0]:.8f}" if r["negative"] else "none"
+        lines.append(f"{r['case']:<16} {r['element']:<7} {r['nu']:>6.3f} {r['h']:>9.4g} "
+                     f"{r['n_dofs']:>8d} {r['n_contact']:>5d} {pos:>22} {neg:>14} "
+                     f"{r['complex_count']:>7d} {r['seconds']:>8.2f}")
+    return "\n".join(lines)
+
+
+@app.command()
+def solve(
+    case: str = typer.Argument(..., help="Case file (TOML) or shipped case name "
+                                         "(see `critfric cases`)."),
+    nu: Optional[float] = typer.Option(None, help="Poisson ratio, overrides [material] nu."),
+    element: Optional[str] = typer.Option(None, help="Element: " + ", ".join(ELEMENTS) + "."),
+    size: Optional[float] = typer.Option(None, help="Target mesh size h."),
+    count: Optional[int] = typer.Option(None, help="Lowest positive coefficients wanted."),
+    shift: Optional[float] = typer.Option(None, help="Find eigenvalues nearest this value."),
+    method: Optional[str] = typer.Option(None, help="Eigen solver: " + ", ".join(METHODS) + "."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="HDF5 result file."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing result file."),
+    as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
+) -> None:
+    """Compute the critical friction coefficients of a case and write an HDF5 result."""
+    given = {"nu": nu, "element": element, "size": size, "count": count, "shift": shift,
+             "method": method, "output": str(output) if output is not None else None}
+    overrides = {OVERRIDES[k]: v for k, v in given.items() if v is not None}
+    try:
+        loaded = load_case(case, overrides=overrides)
+        path = check_output(default_output(loaded), force=force)
+        result = solve_case(loaded)
+        write_result(result, path, force=force)
+    except CritfricError as exc:
+        _fail(exc)
+    for note in result.notes:
+        _err(f"critfric: note: {note}")
+    for warning in result.warnings:
+        _err(f"critfric: warning: {warning}")
+    summary = result.summary()
+    if as_json:
+        typer.echo(json.dumps(summary))
+        return
+    _err(f"wrote {path}")
+    typer.echo(f"case      {loaded.title or loaded.name} ({loaded.source})")
+    typer.echo(f"mesh      {result.element}, h = {result.h:.4g}, {result.n_dofs} DOFs, "
+               f"{result.n_contact} contact nodes")
+    typer.echo(f"nu        {result.nu:g}   solver {result.solver}   "
+               f"{result.seconds:.2f} s")
+    typer.echo(f"positive  {_fmt(result.positive)}")
+    typer.echo(f"negative  {_fmt(result.negative)}")
+    typer.echo(f"complex   {result.complex_count}")
+    typer.echo(f"critical friction coefficient: {result.critical:.10g}")
+
+
+@app.command()
+def cases() -> None:
+    """List the shipped cases (usable by name: `critfric solve inclined-body`)."""
+    for name, path in shipped_cases().items():
+        title = load_case(path).title or ""
+        typer.echo(f"{name:<16} {title}")
+
+
+@app.command()
+def table(
+    files: list[Path] = typer.Argument(..., help="Result files written by `critfric solve`."),
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON list instead."),
+) -> None:
+    """Print a table of the results stored in solve files."""
+    try:
+        rows = [read_summary(f) for f in files]
+    except CritfricError as exc:
+        _fail(exc)
+    typer.echo(json.dumps(rows) if as_json else _table(rows))
+
+
+def version_callback(value: bool) -> None:
+    if value:
+        typer.echo(f"critfric {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main_callback(
+    version: bool = typer.Option(False, "--version", callback=version_callback,
+                                 is_eager=True, help="Print the version and exit."),
+) -> None:
+    """critfric: critical friction coefficients (Hassani, Hild, Ionescu, Sakki 2003)."""
+
+
+def main() -> None:
+    try:
+        app()
+    except KeyboardInterrupt:
+        _err("critfric: interrupted")
+        sys.exit(130)

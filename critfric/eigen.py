@@ -1,0 +1,328 @@
+"""The eigenproblem (3.2): critical friction coefficients and their eigenfunctions.
+
+Notation of METHOD.md. In the n/t basis of :mod:`critfric.contact`, find alpha and
+(Phi, X, Y) with K Phi = B_n X + B_t Y, Phi_n = Phi_t = 0 on stuck nodes, X = Y = 0 on free
+nodes, Phi_n = 0 and Y = alpha gamma X on slipping nodes.
+
+Three solvers, which agree to round-off:
+
+* ``arpack`` (shift 0): ARPACK on the reduced operator T: r -> gamma * X (p0 x p0), whose
+  eigenvalues are 1/alpha. K_c (K without the stuck DOFs and the slipping normal DOFs) is
+  factored once; each application is one solve. 'LM' on T is shift-invert at 0 for free.
+  Beyond the lowest real ones, the spectrum of T accumulates near the imaginary axis at
+  |1/alpha| ~ (1 - 2 nu) / (2 (1 - nu)); a real alpha hidden behind that cluster (small nu)
+  is out of ARPACK's reach at small k. So: k = 2 count, then WIDEN times more, then T is
+  formed explicitly (p0 solves, in blocks) and every eigenvalue is computed.
+* ``arpack`` (shift sigma != 0): ARPACK on (K_c - sigma M)^-1 M, with the rank-p0 matrix
+  M = E_t gamma R_n (slipping tangential rows <- gamma * normal reaction rows). Its
+  eigenvalues are theta = 1/(alpha - sigma): the alphas nearest sigma come first.
+* ``dense``: the Schur complement S of K onto the 2p contact DOFs (one factorization of the
+  interior block, 2p solves), then every eigenvalue of the dense pencil
+  B x = (1/alpha) S_uu x by QZ, u = slipping tangential + free contact DOFs.
+
+Criteria (stated once, used everywhere):
+
+* infinite eigenvalue: |1/alpha| <= INFINITE_TOL. 1/alpha is a dimensionless force ratio of
+  order one; an infinite alpha comes out of floating point as |1/alpha| ~ 1e-16, or ~1e-8
+  from a defective (Jordan) pair: friction coefficients above 1e6 are not reported.
+* real eigenvalue: |Im alpha| <= real_tol * |alpha| (``[solve] real_tol``, default 1e-8).
+* eigenvector check: the relative residual of the equilibrium rows and of the slip law
+  Y = alpha gamma X must be at most RESIDUAL_TOL, or the solve fails loudly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as la
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .contact import FREE, SLIP, STUCK, ContactSystem
+from .errors import SolverError
+from .linsolve import factorize
+
+INFINITE_TOL = 1e-6
+RESIDUAL_TOL = 1e-6
+AUTO_DENSE_DOFS = 5000  # method "auto": dense up to this many free DOFs
+EXPLICIT_T_MAX = 3000  # widest ARPACK fallback: form T explicitly up to this p0
+WIDEN = 4  # ARPACK's second try asks for WIDEN times more eigenvalues
+DENSE_MEMORY = 4e9  # bytes: the dense Schur path refuses above this
+START_SEED = 20030328  # fixed ARPACK start vector: identical runs give identical results
+
+
+@dataclass(frozen=True)
+class ContactState:
+    """Status of each contact node (FREE, STUCK, SLIP) and the slip sign gamma (+1/-1)."""
+
+    status: np.ndarray
+    gamma: np.ndarray
+
+    @classmethod
+    def all_slipping(cls, p: int, gamma: int = 1) -> "ContactState":
+        return cls(np.full(p, SLIP, dtype=np.int8), np.full(p, float(gamma)))
+
+    @property
+    def n_slip(self) -> int:
+        return int(np.count_nonzero(self.status == SLIP))
+
+
+@dataclass
+class Mode:
+    """One real eigenvalue with its eigenfunction: free-DOF vector Phi (n/t basis) and the
+    nodal contact forces X = F(theta_n), Y = F(theta_t) at all contact nodes."""
+
+    alpha: float
+    phi: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    residual: float
+
+
+@dataclass
+class Spectrum:
+    alpha: np.ndarray  # finite eigenvalues found, complex, sorted by modulus
+    positive: np.ndarray  # real ones > 0, sorted
+    negative: np.ndarray  # real ones < 0, sorted by |alpha|
+    modes: list[Mode]  # lowest `count` of each family, positive first
+    method: str
+    n_infinite: int = 0
+    applications: int = 0  # ARPACK operator applications (linear solves)
+    warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # how the search went, for the log
+
+    @property
+    def complex_count(self) -> int:
+        return len(self.alpha) - len(self.positive) - len(self.negative)
+
+
+def _classify(beta: np.ndarray, real_tol: float):
+    """Finite eigenvalues alpha = 1/beta, sorted by modulus; real mask; infinite count."""
+    finite = np.abs(beta) > INFINITE_TOL
+    alpha = 1.0 / beta[finite]
+    order = np.argsort(np.abs(alpha), kind="stable")
+    alpha = alpha[order]
+    real = np.abs(alpha.imag) <= real_tol * np.abs(alpha)
+    return alpha, real, np.flatnonzero(finite)[order], int(np.count_nonzero(~finite))
+
+
+class _Problem:
+    """K in the n/t basis with the index sets of a contact state."""
+
+    def __init__(self, K: sp.csr_matrix, system: ContactSystem, state: ContactState):
+        if len(state.status) != system.n_contact:
+            raise SolverError("the contact state does not match the number of contact nodes")
+        self.K, self.system, self.state = K, system, state
+        self.slip = np.flatnonzero(state.status == SLIP)
+        self.gamma = state.gamma[self.slip]
+        if len(self.slip) == 0:
+            raise SolverError("no slipping contact node: the eigenproblem (3.2) is empty")
+
+    def mode(self, alpha: float, phi: np.ndarray) -> Mode:
+        """Normalize Phi, recover the contact forces and check the residual."""
+        s = self.system
+        F = self.K @ phi
+        zero = np.ones(len(phi), dtype=bool)
+        zero[s.cn[self.state.status != FREE]] = False
+        zero[s.ct[self.state.status != FREE]] = False
+        X, Y = F[s.cn], F[s.ct]
+        Xc, Yc = X[self.slip], Y[self.slip]
+        eq = np.linalg.norm(F[zero]) / max(np.linalg.norm(F), 1e-300)
+        law = np.linalg.norm(Yc - alpha * self.gamma * Xc) / max(
+            np.linalg.norm(Yc) + abs(alpha) * np.linalg.norm(Xc), 1e-300)
+        u = s.to_xy(phi)
+        # sign: the largest tangential contact displacement (first along t) is positive
+        pt = np.abs(phi[s.ct])
+        big = np.flatnonzero(pt >= 0.999 * pt.max()) if pt.max() > 0 else []
+        ref = phi[s.ct[big[0]]] if len(big) else phi[np.argmax(np.abs(phi))]
+        scale = np.sign(ref) / np.abs(u).max()
+        return Mode(float(alpha), phi * scale, X * scale, Y * scale, float(max(eq, law)))
+
+
+class _Reduced(_Problem):
+    """K_c (stuck DOFs and slipping normal DOFs eliminated), factored once."""
+
+    def __init__(self, K, system, state, *, shift=0.0):
+        super().__init__(K, system, state)
+        stuck = state.status == STUCK
+        elim = np.concatenate([system.cn[self.slip], system.cn[stuck], system.ct[stuck]])
+        keep = np.ones(K.shape[0], dtype=bool)
+        keep[elim] = False
+        self.kept = np.flatnonzero(keep)
+        position = np.cumsum(keep) - 1
+        self.tc = position[system.ct[self.slip]]
+        self.Kc = K[self.kept][:, self.kept].tocsc()
+        self.Rn = K[system.cn[self.slip]][:, self.kept].tocsr()
+        if shift == 0.0:
+            self.factor = factorize(self.Kc, symmetric=True)
+        else:  # M: slipping tangential rows <- gamma * normal reaction rows (rank p0)
+            E = sp.csr_matrix((self.gamma, (self.tc, np.arange(len(self.slip)))),
+                              shape=(self.Kc.shape[0], len(self.slip)))
+            self.M = (E @ self.Rn).tocsr()
+            self.factor = factorize((self.Kc - shift * self.M).tocsc(), symmetric=False)
+        self.applications = 0
+
+    def solve_tangential(self, r: np.ndarray) -> np.ndarray:
+        """K_c V = tangential load r on the slipping nodes (r of shape (p0,) or (p0, k))."""
+        b = np.zeros((self.Kc.shape[0],) + r.shape[1:])
+        b[self.tc] = r
+        self.applications += 1 if r.ndim == 1 else r.shape[1]
+        return self.factor.solve(b)
+
+    def T(self, r: np.ndarray) -> np.ndarray:
+        V = self.solve_tangential(r)
+        g = self.gamma if r.ndim == 1 else self.gamma[:, None]
+        return g * (self.Rn @ V)
+
+    def shifted(self, v: np.ndarray) -> np.ndarray:
+        self.applications += 1
+        return self.factor.solve(self.M @ v)
+
+    def explicit_T(self, block: int = 64) -> np.ndarray:
+        """T as a dense p0 x p0 matrix, solving `block` right-hand sides at a time."""
+        p0 = len(self.slip)
+        T = np.empty((p0, p0))
+        for j in range(0, p0, block):
+            cols = np.arange(j, min(j + block, p0))
+            E = np.zeros((p0, len(cols)))
+            E[cols, np.arange(len(cols))] = 1.0
+            T[:, cols] = self.T(E)
+        return T
+
+    def phi(self, V: np.ndarray) -> np.ndarray:
+        out = np.zeros(self.K.shape[0])
+        out[self.kept] = V
+        return out
+
+
+def solve_dense(K, system: ContactSystem, state: ContactState, *, count: int,
+                real_tol: float) -> Spectrum:
+    """Every eigenvalue, from the dense pencil on the Schur complement onto Gamma_C."""
+    prob = _Problem(K, system, state)
+    p, m = system.n_contact, K.shape[0]
+    c = np.concatenate([system.cn, system.ct])
+    others = np.setdiff1d(np.arange(m), c)
+    if 8.0 * len(others) * 2 * p > DENSE_MEMORY:
+        raise SolverError(f"the dense path would need {8e-9 * len(others) * 2 * p:.1f} GB for "
+                          f"{m} DOFs and {p} contact nodes; use method = 'arpack'")
+    Kic = K[others][:, c].toarray()
+    Z = (factorize(K[others][:, others].tocsc()).solve(Kic) if len(others)
+         else np.zeros((0, 2 * p)))
+    S = K[c][:, c].toarray() - Kic.T @ Z
+    S = 0.5 * (S + S.T)
+    freen = np.flatnonzero(state.status == FREE)
+    u = np.concatenate([p + prob.slip, freen, p + freen])
+    A = S[np.ix_(u, u)]
+    B = np.zeros_like(A)
+    B[: len(prob.slip)] = prob.gamma[:, None] * S[np.ix_(prob.slip, u)]
+    beta, vecs = la.eig(B, A)
+    alpha, real, index, n_inf = _classify(beta, real_tol)
+    n_inf -= 2 * len(freen)  # the free rows always give zero betas: not eigenvalues of (3.2)
+
+    def phi_of(j):
+        phic = np.zeros(2 * p)
+        phic[u] = _real_vector(vecs[:, j])
+        out = np.zeros(m)
+        out[c] = phic
+        out[others] = -Z @ phic
+        return out
+
+    return _finish(prob, alpha, real, index, phi_of, count, "dense", max(n_inf, 0), 0)
+
+
+def solve_arpack(K, system: ContactSystem, state: ContactState, *, count: int, shift: float,
+                 tol: float, maxiter: int | None, real_tol: float) -> Spectrum:
+    """ARPACK on T (shift 0) or on the shifted pencil, widening until `count` positives."""
+    red = _Reduced(K, system, state, shift=shift)
+    p0 = len(red.slip)
+    notes: list[str] = []
+    if shift == 0.0:
+        n, apply = p0, red.T
+    else:
+        n, apply = red.Kc.shape[0], red.shifted
+    k0 = max(2, 2 * count)
+    vecs = beta = None
+    if n >= 4:
+        op = spla.LinearOperator((n, n), matvec=apply, dtype=np.float64)
+        v0 = np.random.default_rng(START_SEED).standard_normal(n)
+        for k in sorted({min(k0, n - 2), min(WIDEN * k0, n - 2, p0)}):
+            try:
+                theta, vecs = spla.eigs(op, k=k, which="LM", v0=v0, tol=tol, maxiter=maxiter,
+                                        ncv=min(n, max(2 * k + 1, 20)))
+                converged = True
+            except spla.ArpackNoConvergence as exc:
+                theta, vecs, converged = exc.eigenvalues, exc.eigenvectors, False
+            beta = theta if shift == 0.0 else theta / (1.0 + shift * theta)
+            alpha, real, _, _ = _classify(beta, real_tol)
+            found = np.count_nonzero(real & (alpha.real > 0))
+            if converged and found >= count:
+                break
+            what = "did not converge" if not converged else f"found {found} of {count} real " \
+                "positive eigenvalue(s)"
+            notes.append(f"ARPACK {what} among the {k} eigenvalues nearest the shift")
+            beta = None
+    if beta is None:  # widest search: every eigenvalue of T, formed explicitly
+        if p0 > EXPLICIT_T_MAX:
+            raise SolverError(f"ARPACK did not find {count} real positive eigenvalue(s) and "
+                              f"p0 = {p0} is too many to form T; try a larger [solve] tol, a "
+                              "smaller count, method = 'dense' or a shift near the value sought")
+        if shift != 0.0:
+            red.factor = factorize(red.Kc, symmetric=True)
+        beta, vecs = la.eig(red.explicit_T())
+        if n >= 4:
+            notes.append(f"T formed explicitly ({p0} solves) to find every eigenvalue")
+        method = "arpack+explicit"
+    else:
+        method = "arpack" if shift == 0.0 else "arpack-shift"
+    alpha, real, index, n_inf = _classify(beta, real_tol)
+
+    def phi_of(j):
+        v = _real_vector(vecs[:, j])
+        if method != "arpack-shift":  # v is r, the tangential load on I_c
+            v = red.solve_tangential(v)
+        return red.phi(v)
+
+    spec = _finish(red, alpha, real, index, phi_of, count, method, n_inf, red.applications)
+    spec.notes[:0] = notes
+    return spec
+
+
+def _real_vector(v: np.ndarray) -> np.ndarray:
+    """The real eigenvector of a real eigenvalue: remove the arbitrary complex phase."""
+    j = np.argmax(np.abs(v))
+    return (v * (np.abs(v[j]) / v[j])).real
+
+
+def _finish(prob, alpha, real, index, phi_of, count, method, n_inf, applications) -> Spectrum:
+    pos = np.flatnonzero(real & (alpha.real > 0))
+    neg = np.flatnonzero(real & (alpha.real < 0))
+    modes = []
+    for j in list(pos[:count]) + list(neg[:count]):
+        mode = prob.mode(alpha[j].real, phi_of(index[j]))
+        if not mode.residual <= RESIDUAL_TOL:
+            raise SolverError(
+                f"the eigenvector of alpha = {alpha[j].real:.10g} has relative residual "
+                f"{mode.residual:.2e} > {RESIDUAL_TOL:g} ({method} path); try method = 'dense' "
+                "or a tighter [solve] tol")
+        modes.append(mode)
+    alpha = np.where(real, alpha.real + 0j, alpha)
+    spec = Spectrum(alpha=alpha, positive=alpha[pos].real, negative=alpha[neg].real,
+                    modes=modes, method=method, n_infinite=n_inf, applications=applications)
+    if len(pos) < count:
+        spec.warnings.append(f"only {len(pos)} real positive eigenvalue(s) found, {count} asked")
+    return spec
+
+
+def solve(K, system: ContactSystem, state: ContactState | None = None, *, method="auto",
+          count=1, shift=0.0, tol=0.0, maxiter=None, real_tol=1e-8, gamma=1) -> Spectrum:
+    """Critical friction coefficients of a contact state (default: all nodes slipping)."""
+    state = state or ContactState.all_slipping(system.n_contact, gamma)
+    if method == "auto":
+        method = "dense" if (K.shape[0] <= AUTO_DENSE_DOFS or state.n_slip < 4) else "arpack"
+    if method == "dense":
+        return solve_dense(K, system, state, count=count, real_tol=real_tol)
+    if method == "arpack":
+        return solve_arpack(K, system, state, count=count, shift=shift, tol=tol,
+                            maxiter=maxiter, real_tol=real_tol)
+    raise SolverError(f"unknown eigen method {method!r}; allowed: auto, arpack, dense")

@@ -1,0 +1,178 @@
+"""The solve pipeline: case -> mesh -> assembly -> contact system -> eigenproblem -> Result.
+
+``prepare`` does everything that does not depend on the Poisson ratio (mesh, the two stiffness
+parts, the contact DOF basis) so that a sweep over nu reuses it; ``solve_prepared`` does the
+rest. ``solve_case`` chains them: it is what ``critfric solve`` calls.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import eigen
+from .assembly import assemble_elasticity, lame
+from .case import Case, load_case
+from .contact import ContactSystem, contact_system
+from .geometry import parallelogram, polygon, rectangle, validate
+from .mesh import Mesh, build_mesh, inline_mesh
+
+
+@dataclass
+class Prepared:
+    """Mesh, stiffness parts and contact basis of a case: everything independent of nu."""
+
+    mesh: Mesh
+    system: ContactSystem
+    seconds: dict[str, float]
+
+
+@dataclass
+class Result:
+    """The critical friction coefficients of one case, with the data to write or plot them."""
+
+    case: Case
+    positive: np.ndarray
+    negative: np.ndarray
+    alpha: np.ndarray
+    modes: list[dict]
+    mesh: Mesh
+    contact_nodes: np.ndarray
+    normal: np.ndarray
+    n_dofs: int
+    nu: float
+    E: float
+    element: str
+    size: float | None
+    h: float
+    solver: str
+    applications: int
+    n_infinite: int
+    seconds: float
+    timings: dict[str, float] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def n_contact(self) -> int:
+        return len(self.contact_nodes)
+
+    @property
+    def complex_count(self) -> int:
+        return len(self.alpha) - len(self.positive) - len(self.negative)
+
+    @property
+    def critical(self) -> float:
+        """The critical friction coefficient: the lowest positive eigenvalue (NaN if none)."""
+        return float(self.positive[0]) if len(self.positive) else float("nan")
+
+    def summary(self) -> dict[str, Any]:
+        """The JSON summary of ``critfric solve --json``."""
+        return {
+            "case": self.case.name,
+            "positive": [float(a) for a in self.positive],
+            "negative": [float(a) for a in self.negative],
+            "complex_count": self.complex_count,
+            "n_dofs": self.n_dofs,
+            "n_contact": self.n_contact,
+            "element": self.element,
+            "nu": self.nu,
+            "h": self.h,
+            "size": self.size,
+            "method": self.solver,
+            "seconds": round(self.seconds, 4),
+            "warnings": list(self.warnings),
+        }
+
+
+def geometry_polygon(case: Case):
+    """The validated polygon of a gmsh-meshed case."""
+    g = case.geometry
+    shape = g["shape"]
+    if shape == "square":
+        poly = rectangle(g["side"], g["side"])
+    elif shape == "rectangle":
+        poly = rectangle(g["width"], g["height"])
+    elif shape == "parallelogram":
+        poly = parallelogram(g["base"], g["height"], g["offset"])
+    else:
+        poly = polygon(np.asarray(g["vertices"], dtype=float), g["edge_names"])
+    return validate(poly)
+
+
+def make_mesh(case: Case) -> Mesh:
+    g, m = case.geometry, case.mesh
+    if g["shape"] == "mesh":
+        cells = g["triangles"] if g["triangles"] is not None else g["quads"]
+        return inline_mesh(np.asarray(g["nodes"], dtype=float), np.asarray(cells),
+                           g["edges"], m["element"])
+    return build_mesh(geometry_polygon(case), size=m["size"], element=m["element"],
+                      structured=m["structured"], grading=m["grading"],
+                      contact=case.boundary["contact"])
+
+
+def prepare(case: Case) -> Prepared:
+    """Mesh, assemble and classify the boundary of a case (independent of nu)."""
+    t0 = time.perf_counter()
+    mesh = make_mesh(case)
+    t1 = time.perf_counter()
+    K_lam, K_G = assemble_elasticity(mesh)
+    t2 = time.perf_counter()
+    system = contact_system(mesh, K_lam, K_G, contact=case.boundary["contact"],
+                            dirichlet=case.boundary["dirichlet"], source=case.source)
+    t3 = time.perf_counter()
+    return Prepared(mesh, system, {"mesh": t1 - t0, "assembly": t2 - t1, "contact": t3 - t2})
+
+
+def mesh_diameter(mesh: Mesh) -> float:
+    """h: the largest cell diameter (longest distance between two vertices of a cell)."""
+    nv = 3 if mesh.element in ("P1", "P2") else 4
+    v = mesh.points[mesh.cells[:, :nv]]
+    d = np.linalg.norm(v[:, :, None, :] - v[:, None, :, :], axis=-1)
+    return float(d.max())
+
+
+def solve_prepared(prep: Prepared, case: Case) -> Result:
+    """Solve the eigenproblem of a prepared case at the case's Poisson ratio."""
+    t0 = time.perf_counter()
+    E, nu = case.material["E"], case.material["nu"]
+    lam, G = lame(E, nu)
+    s = case.solve
+    system = prep.system
+    spec = eigen.solve(system.stiffness(lam, G), system, method=s["method"], count=s["count"],
+                       shift=s["shift"], tol=s["tol"], maxiter=s["maxiter"],
+                       real_tol=s["real_tol"], gamma=s["gamma"])
+    modes = [
+        {
+            "alpha": m.alpha,
+            "phi": system.to_xy(m.phi),
+            "theta_n": m.X,
+            "theta_t": m.Y,
+            "residual": m.residual,
+        }
+        for m in spec.modes
+    ]
+    t1 = time.perf_counter()
+    timings = dict(prep.seconds, eigen=t1 - t0)
+    return Result(
+        case=case, positive=spec.positive, negative=spec.negative, alpha=spec.alpha,
+        modes=modes, mesh=prep.mesh, contact_nodes=system.nodes, normal=system.normal,
+        n_dofs=system.n_dofs, nu=nu, E=E, element=case.mesh["element"],
+        size=case.mesh["size"], h=mesh_diameter(prep.mesh), solver=spec.method,
+        applications=spec.applications, n_infinite=spec.n_infinite,
+        seconds=sum(timings.values()), timings=timings, warnings=spec.warnings,
+        notes=spec.notes,
+    )
+
+
+def solve_case(case: Case | str | Path, *, overrides: dict[str, Any] | None = None) -> Result:
+    """Load (if needed), mesh, assemble and solve a case; return its :class:`Result`."""
+    if not isinstance(case, Case):
+        case = load_case(case, overrides=overrides)
+    elif overrides:
+        case = case.with_overrides(overrides)
+    return solve_prepared(prepare(case), case)
