@@ -275,6 +275,7 @@ def solve_arpack(K, system: ContactSystem, state: ContactState, *, count: int, s
         method = "arpack+explicit"
     else:
         method = "arpack" if shift == 0.0 else "arpack-shift"
+    beta, vecs = _complete_pairs(beta, vecs)
     alpha, real, index, n_inf = _classify(beta, real_tol)
 
     def phi_of(j):
@@ -286,6 +287,16 @@ def solve_arpack(K, system: ContactSystem, state: ContactState, *, count: int, s
     spec = _finish(red, alpha, real, index, phi_of, count, method, n_inf, red.applications)
     spec.notes[:0] = notes
     return spec
+
+
+def _complete_pairs(beta: np.ndarray, vecs: np.ndarray):
+    """Add the missing conjugate of a complex eigenvalue ARPACK returned alone."""
+    lone = [j for j, b in enumerate(beta)
+            if b.imag != 0 and np.min(np.abs(beta - np.conj(b))) > 1e-10 * abs(b)]
+    if not lone:
+        return beta, vecs
+    return (np.concatenate([beta, np.conj(beta[lone])]),
+            np.concatenate([vecs, np.conj(vecs[:, lone])], axis=1))
 
 
 def _real_vector(v: np.ndarray) -> np.ndarray:
