@@ -19,8 +19,9 @@ import tomli_w
 from .errors import CaseError
 
 ELEMENTS = ("P1", "P2", "Q1", "Q2")
-SHAPES = ("square", "rectangle", "parallelogram", "polygon", "mesh")
+SHAPES = ("square", "rectangle", "parallelogram", "polygon", "mesh", "file")
 METHODS = ("auto", "arpack", "dense")
+BACKENDS = ("auto", "scipy", "pardiso")  # linear solvers: critfric.linsolve.BACKENDS
 
 
 # ----------------------------------------------------------------------------- field checks
@@ -149,6 +150,99 @@ def _gamma(value):
     return int(value)
 
 
+def _finite(c) -> bool:
+    return isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+
+
+def _vector(value):
+    if not (isinstance(value, list) and len(value) == 2 and all(_finite(c) for c in value)):
+        raise _Bad("a vector [x, y] of 2 finite numbers")
+    return [float(c) for c in value]
+
+
+def _table_of(check, what):
+    def table(value):
+        if not isinstance(value, dict) or not value:
+            raise _Bad(f"a table: edge name = {what}")
+        out = {}
+        for name, entry in value.items():
+            try:
+                out[name] = check(entry)
+            except _Bad as bad:
+                raise _Bad(f"for edge {name!r}: {bad}") from None
+        return out
+
+    return table
+
+
+def _displacement(value):
+    """[ux, uy] (constant) or [[a0, ax, ay], [b0, bx, by]]: u = (a0 + ax x + ay y, b0 + ...)."""
+    if isinstance(value, list) and len(value) == 2 and all(_finite(c) for c in value):
+        return [[float(value[0]), 0.0, 0.0], [float(value[1]), 0.0, 0.0]]
+    if isinstance(value, list) and len(value) == 2 and all(
+            isinstance(r, list) and len(r) == 3 and all(_finite(c) for c in r) for r in value):
+        return [[float(c) for c in r] for r in value]
+    raise _Bad("[ux, uy] (constant) or [[a0, ax, ay], [b0, bx, by]] (ux = a0 + ax x + ay y, "
+               "uy = b0 + bx x + by y), finite numbers")
+
+
+def _point_forces(value):
+    what = "a list of tables {node = i, force = [fx, fy]} or {at = [x, y], force = [fx, fy]}"
+    if not isinstance(value, list) or not value:
+        raise _Bad(what)
+    out = []
+    for i, entry in enumerate(value):
+        ok = isinstance(entry, dict) and set(entry) in ({"node", "force"}, {"at", "force"})
+        try:
+            if not ok:
+                raise _Bad(what)
+            force = _vector(entry["force"])
+            if "node" in entry:
+                node = entry["node"]
+                if isinstance(node, bool) or not isinstance(node, int) or node < 0:
+                    raise _Bad("node: a node index (integer >= 0)")
+                out.append({"node": node, "force": force})
+            else:
+                out.append({"at": _vector(entry["at"]), "force": force})
+        except _Bad as bad:
+            raise _Bad(f"entry {i}: {bad}") from None
+    return out
+
+
+def _reference(value):
+    if _finite(value):
+        return float(value)
+    if isinstance(value, list) and value and all(_finite(c) for c in value):
+        return [float(c) for c in value]
+    raise _Bad("a number or a non-empty list of numbers (one per contact node, along t)")
+
+
+STATUSES = ("free", "stuck", "slip")
+
+
+def _contact_rules(value):
+    what = "a list of tables {from = s0, to = s1, status = 'free'|'stuck'|'slip'[, gamma = 1|-1]}"
+    if not isinstance(value, list):
+        raise _Bad(what)
+    out = []
+    for i, rule in enumerate(value):
+        try:
+            if not isinstance(rule, dict) or not {"from", "to", "status"} <= set(rule) or not \
+                    set(rule) <= {"from", "to", "status", "gamma"}:
+                raise _Bad(what)
+            lo, hi = _number()(rule["from"]), _number()(rule["to"])
+            if lo > hi:
+                raise _Bad(f"from <= to (got from = {lo:g}, to = {hi:g})")
+            status = _choice(*STATUSES)(rule["status"])
+            if "gamma" in rule and status != "slip":
+                raise _Bad("gamma only in a rule with status = 'slip'")
+            out.append({"from": lo, "to": hi, "status": status,
+                        "gamma": _gamma(rule.get("gamma", 1))})
+        except _Bad as bad:
+            raise _Bad(f"rule {i}: {bad}") from None
+    return out
+
+
 POSITIVE = _number(0.0, lo_open=True)
 
 SCHEMA: dict[str, dict[str, Key]] = {
@@ -165,6 +259,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "triangles": Key(_index_rows((3,)), None, "mesh: triangles [[a, b, c], ...]"),
         "quads": Key(_index_rows((4,)), None, "mesh: quadrilaterals [[a, b, c, d], ...]"),
         "edges": Key(_edge_table, REQUIRED, "mesh: named boundary edges {name = [[a, b], ...]}"),
+        "file": Key(_string, REQUIRED, "file: a gmsh .msh mesh or .geo script, relative to the "
+                    "case file; boundary edges are its named physical curves"),
+        "domain": Key(_names, None, "file: physical surface(s) of the body [every surface]"),
     },
     "boundary": {
         "contact": Key(_names, ["bottom"], "edges of Gamma_C (one straight segment)"),
@@ -183,12 +280,33 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "solve": {
         "method": Key(_choice(*METHODS), "auto", "eigen solver: " + ", ".join(METHODS)),
+        "backend": Key(_choice(*BACKENDS), "auto",
+                       "sparse linear solver: auto (the fastest available), scipy, pardiso"),
         "count": Key(_integer(1, 1000), 1, "number of lowest positive critical coefficients"),
         "shift": Key(_number(), 0.0, "look for eigenvalues nearest this friction value"),
         "gamma": Key(_gamma, 1, "slip sign of every contact node (+1 or -1)"),
         "tol": Key(_number(0.0, 1e-2), 0.0, "ARPACK relative tolerance (0: machine precision)"),
         "maxiter": Key(_integer(1, 10**7), None, "ARPACK iteration cap (default: ARPACK's)"),
         "real_tol": Key(_number(0.0, 1e-2), 1e-8, "|Im a| <= real_tol |a| counts as real"),
+    },
+    "load": {
+        "friction": Key(_number(0.0), None, "friction coefficient of the static problem (2.8)"),
+        "traction": Key(_table_of(_vector, "[tx, ty]"), None,
+                        "constant traction on traction-free edges {name = [tx, ty]}"),
+        "body_force": Key(_vector, None, "body force [fx, fy] (force per unit area)"),
+        "points": Key(_point_forces, None,
+                      "point forces [{node = i or at = [x, y], force = [fx, fy]}, ...]"),
+        "displacement": Key(_table_of(_displacement, "[ux, uy] or [[a0, ax, ay], [b0, bx, by]]"),
+                            None, "prescribed displacement per Dirichlet edge (others: zero)"),
+        "reference": Key(_reference, 0.0, "reference tangential displacement u^r: one value or "
+                         "one per contact node, sorted along t"),
+    },
+    "contact": {
+        "source": Key(_choice("rules", "coulomb"), "rules", "contact state of the eigenproblem: "
+                      "'rules' below, or 'coulomb': the state of the static solution of [load]"),
+        "default": Key(_choice(*STATUSES), "slip", "status of contact nodes no rule covers"),
+        "rules": Key(_contact_rules, None, "[{from = s0, to = s1, status, gamma}]: status of the "
+                     "contact nodes at arc length s in [s0, s1] along t (later rules win)"),
     },
     "output": {
         "file": Key(_string, None, "HDF5 result file (default: <case name>.h5)"),
@@ -204,6 +322,7 @@ SHAPE_KEYS = {
     "parallelogram": {"base", "height", "offset"},
     "polygon": {"vertices", "edge_names"},
     "mesh": {"nodes", "triangles", "quads", "edges"},
+    "file": {"file", "domain"},
 }
 
 # CLI override name -> dotted key
@@ -214,6 +333,7 @@ OVERRIDES = {
     "count": "solve.count",
     "shift": "solve.shift",
     "method": "solve.method",
+    "backend": "solve.backend",
     "output": "output.file",
 }
 
@@ -234,6 +354,8 @@ class Case:
     title: str | None = None
     text: str = ""
     raw: dict = field(default_factory=dict, repr=False)
+    load: dict = field(default_factory=dict)
+    contact: dict = field(default_factory=dict)
 
     def to_toml(self) -> str:
         """The effective case (overrides applied) as TOML: re-running it gives the same run."""
@@ -377,6 +499,9 @@ def _check_consistency(s: dict, source: str) -> None:
                 raise CaseError(f"does not apply to an inline mesh (shape = 'mesh')",
                                 file=source, key=f"mesh.{key}")
         names = set(geo["edges"])
+    elif shape == "file":
+        _check_file_shape(geo, mesh, source)
+        names = None  # the file's physical groups: checked when it is read
     else:
         if mesh.get("size") is None:
             raise CaseError("missing key (target element size h, a positive number)",
@@ -390,7 +515,7 @@ def _check_consistency(s: dict, source: str) -> None:
         else:
             names = {"bottom", "right", "top", "left"}
     for key in ("contact", "dirichlet"):
-        unknown = [e for e in bnd[key] if e not in names]
+        unknown = [e for e in bnd[key] if names is not None and e not in names]
         if unknown:
             raise CaseError(f"unknown edge {unknown[0]!r}; allowed: "
                             + ", ".join(sorted(names)), file=source, key=f"boundary.{key}")
@@ -399,3 +524,47 @@ def _check_consistency(s: dict, source: str) -> None:
         raise CaseError(f"edge {sorted(both)[0]!r} is both contact and Dirichlet; an edge has "
                         "one condition", file=source, key="boundary.dirichlet")
     mesh.setdefault("size", None)
+    _check_load(s, names, source)
+
+
+def _check_load(s: dict, names: set | None, source: str) -> None:
+    """[load] edges exist and carry the right condition; node indices exist (inline meshes)."""
+    load, bnd, geo = s["load"], s["boundary"], s["geometry"]
+    for name in load["traction"] or {}:
+        if (names is not None and name not in names) or name in bnd["contact"] + bnd["dirichlet"]:
+            free = sorted((names or set()) - set(bnd["contact"]) - set(bnd["dirichlet"]))
+            raise CaseError(f"got edge {name!r}; allowed: a traction-free edge ("
+                            + (", ".join(free) or "none") + ")", file=source, key="load.traction")
+    for name in load["displacement"] or {}:
+        if name not in bnd["dirichlet"]:
+            raise CaseError(f"got edge {name!r}; allowed: a Dirichlet edge ("
+                            + ", ".join(bnd["dirichlet"]) + ")", file=source,
+                            key="load.displacement")
+    for i, point in enumerate(load["points"] or []):
+        if "node" in point and (geo["shape"] != "mesh" or point["node"] >= len(geo["nodes"])):
+            allowed = (f"a node index < {len(geo['nodes'])}" if geo["shape"] == "mesh" else
+                       "at = [x, y] (node numbers of generated meshes are not stable)")
+            raise CaseError(f"got node = {point['node']}; allowed: {allowed}", file=source,
+                            key=f"load.points.{i}")
+
+
+GMSH_SUFFIXES = (".msh", ".geo")
+
+
+def _check_file_shape(geo: dict, mesh: dict, source: str) -> None:
+    suffix = Path(geo["file"]).suffix.lower()
+    if suffix not in GMSH_SUFFIXES:
+        raise CaseError(f"got {geo['file']!r}; allowed: a gmsh mesh (.msh) or script (.geo)",
+                        file=source, key="geometry.file")
+    for key in ("structured", "grading") + (("size",) if suffix == ".msh" else ()):
+        if mesh.get(key) not in (None, False):
+            raise CaseError(f"does not apply to a {suffix} file (shape = 'file')",
+                            file=source, key=f"mesh.{key}")
+
+
+def geometry_file(case: Case) -> Path:
+    """The gmsh file of a ``shape = "file"`` case; a relative path is relative to the case file
+    (to the current directory for a case given as text)."""
+    path = Path(case.geometry["file"]).expanduser()
+    base = Path(case.source).parent if Path(case.source).is_file() else Path(".")
+    return path if path.is_absolute() else base / path

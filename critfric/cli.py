@@ -14,8 +14,9 @@ from typing import Optional
 import typer
 
 from . import __version__
-from .case import ELEMENTS, METHODS, OVERRIDES, load_case, shipped_cases
+from .case import BACKENDS, ELEMENTS, METHODS, OVERRIDES, load_case, shipped_cases
 from .errors import CritfricError
+from .guards import output_lock
 from .results import check_output, default_output, read_summary, write_result
 from .solve import solve_case
 
@@ -65,19 +66,34 @@ def solve(
     count: Optional[int] = typer.Option(None, help="Lowest positive coefficients wanted."),
     shift: Optional[float] = typer.Option(None, help="Find eigenvalues nearest this value."),
     method: Optional[str] = typer.Option(None, help="Eigen solver: " + ", ".join(METHODS) + "."),
+    backend: Optional[str] = typer.Option(None, help="Sparse linear solver: "
+                                          + ", ".join(BACKENDS) + "."),
     output: Optional[Path] = typer.Option(None, "--output", "-o", help="HDF5 result file."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing result file."),
     as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
+    max_dofs: Optional[int] = typer.Option(None, "--max-dofs", min=1, help="Refuse meshes above "
+                                           "this many DOFs (default: what memory allows)."),
+    trust_geo: bool = typer.Option(False, "--trust-geo", help="Mesh a .geo script even if it "
+                                   "can run programs or read or write files."),
+    plot: bool = typer.Option(False, "--plot", help="Also write the figures (PNG)."),
 ) -> None:
     """Compute the critical friction coefficients of a case and write an HDF5 result."""
     given = {"nu": nu, "element": element, "size": size, "count": count, "shift": shift,
-             "method": method, "output": str(output) if output is not None else None}
+             "method": method, "backend": backend,
+             "output": str(output) if output is not None else None}
     overrides = {OVERRIDES[k]: v for k, v in given.items() if v is not None}
     try:
         loaded = load_case(case, overrides=overrides)
         path = check_output(default_output(loaded), force=force)
-        result = solve_case(loaded)
-        write_result(result, path, force=force)
+        with output_lock(path):
+            check_output(path, force=force)  # again: another run may have written it
+            result = solve_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo)
+            write_result(result, path, force=force)
+        if plot:
+            from .plots import plot_file
+
+            for png in plot_file(path):
+                _err(f"wrote {png}")
     except CritfricError as exc:
         _fail(exc)
     for note in result.notes:
@@ -119,6 +135,88 @@ def table(
     except CritfricError as exc:
         _fail(exc)
     typer.echo(json.dumps(rows) if as_json else _table(rows))
+
+
+@app.command()
+def sweep(
+    case: Optional[str] = typer.Argument(None, help="Case file or shipped case name "
+                                                    "[default: unit-square]."),
+    nu: Optional[str] = typer.Option(None, help="Poisson ratios: A:B[:N] (N points, default "
+                                     "11; a range ending at 0.5 stops just short of it) or "
+                                     "v1,v2,... [default: the case's nu]."),
+    size: Optional[str] = typer.Option(None, help="Mesh sizes h1,h2,... (three or more give "
+                                       "h -> 0 limits) [default: the case's size]."),
+    element: Optional[str] = typer.Option(None, help="Elements, e.g. P1,P2 [default: the "
+                                          "case's element]."),
+    grading: Optional[float] = typer.Option(None, help="Meshes graded towards the ends of "
+                                            "Gamma_C: size g*h there, g in (0, 1]."),
+    count: Optional[int] = typer.Option(None, help="Lowest coefficients stored per family."),
+    jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help="Worker processes "
+                                       "[default: all cores]."),
+    scheduler: Optional[str] = typer.Option(None, help="Run on this Dask scheduler "
+                                            "(e.g. tcp://host:8786) instead."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Sweep file "
+                                          "[default: <case name>_sweep.h5]."),
+    force: bool = typer.Option(False, "--force", help="Discard an existing sweep file written "
+                               "for another case or grid."),
+    as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
+    plot: bool = typer.Option(False, "--plot", help="Also write the figures (PNG)."),
+) -> None:
+    """Sweep nu, mesh size and element; resumable; h -> 0 limits by Richardson extrapolation."""
+    from .plots import plot_file
+    from .progress import progress_bar
+    from .sweep import default_output as sweep_output, make_grid, report, run_sweep
+
+    try:
+        loaded = load_case(case or "unit-square",
+                           overrides={"mesh.grading": grading, "solve.count": count})
+        grid = make_grid(loaded, nu=nu, size=size, element=element)
+        for note in grid.notes:
+            _err(f"critfric: note: {note}")
+        with progress_bar(enabled=not as_json and sys.stderr.isatty()) as on_point:
+            result = run_sweep(loaded, grid, output=output or sweep_output(loaded), jobs=jobs,
+                               scheduler=scheduler, force=force, on_point=on_point)
+        pngs = plot_file(result.path) if plot else []
+    except CritfricError as exc:
+        _fail(exc)
+    typer.echo(json.dumps(result.summary()) if as_json else report(result))
+    for png in pngs:
+        _err(f"wrote {png}")
+
+
+@app.command()
+def plot(
+    file: Path = typer.Argument(..., help="A sweep or solve file."),
+    nu: Optional[float] = typer.Option(None, help="Sweep: the nu of the convergence figure "
+                                       "[default: the middle one]."),
+) -> None:
+    """Write the figures (PNG) of a sweep or solve file next to it."""
+    from .plots import plot_file
+
+    try:
+        pngs = plot_file(file, nu=nu)
+    except CritfricError as exc:
+        _fail(exc)
+    for png in pngs:
+        typer.echo(str(png))
+
+
+@app.command()
+def export(
+    file: Path = typer.Argument(..., help="A solve file."),
+    fmt: str = typer.Option("xdmf", "--format", help="xdmf or vtu."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Output file "
+                                          "[default: <file>_modes.<format>]."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing export."),
+) -> None:
+    """Export the mesh and the critical modes (Phi, stress, von Mises) for ParaView."""
+    from .export import export_file
+
+    try:
+        path = export_file(file, fmt=fmt, output=output, force=force)
+    except CritfricError as exc:
+        _fail(exc)
+    typer.echo(str(path))
 
 
 def version_callback(value: bool) -> None:

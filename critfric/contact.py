@@ -30,6 +30,9 @@ class ContactSystem:
     cn, ct  : (p,) positions, within the free DOFs, of the normal and tangential DOF of each
               contact node.
     K_lam, K_G : (m, m) CSR parts, K = lam * K_lam + G * K_G.
+    fixed   : (d,) global DOF indices of the Dirichlet nodes (xy components).
+    D_lam, D_G : (m, d) CSR parts of the coupling of the free DOFs (rows, n/t basis) to the
+              Dirichlet DOFs (columns): prescribed values u_D add -K_FD u_D to the load.
     """
 
     mesh: Mesh
@@ -41,6 +44,9 @@ class ContactSystem:
     ct: np.ndarray
     K_lam: sp.csr_matrix
     K_G: sp.csr_matrix
+    fixed: np.ndarray | None = None
+    D_lam: sp.csr_matrix | None = None
+    D_G: sp.csr_matrix | None = None
 
     @property
     def n_dofs(self) -> int:
@@ -52,6 +58,17 @@ class ContactSystem:
 
     def stiffness(self, lam: float, G: float) -> sp.csr_matrix:
         return (lam * self.K_lam + G * self.K_G).tocsr()
+
+    def coupling(self, lam: float, G: float) -> sp.csr_matrix:
+        """K_FD (m, d): free rows (n/t basis) x Dirichlet columns (xy)."""
+        return (lam * self.D_lam + G * self.D_G).tocsr()
+
+    def from_xy(self, full: np.ndarray) -> np.ndarray:
+        """Nodal vector(s) (..., 2 * n_nodes) in xy -> free-DOF vector(s) in the n/t basis."""
+        u = np.array(full, dtype=float).reshape(np.shape(full)[:-1] + (self.mesh.n_nodes, 2))
+        c = u[..., self.nodes, :].copy()
+        u[..., self.nodes, 0], u[..., self.nodes, 1] = c @ self.normal, c @ self.tangent
+        return u.reshape(np.shape(full))[..., self.free]
 
     def to_xy(self, u_free: np.ndarray) -> np.ndarray:
         """Free-DOF vector(s) in the n/t basis -> nodal displacements (..., n_nodes, 2)."""
@@ -140,7 +157,11 @@ def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix, *, contact:
     position[free] = np.arange(len(free))
     Q = rotation(mesh.n_nodes, nodes, normal, tangent)
     QT = Q.T.tocsr()
-    parts = [(QT @ K @ Q).tocsr()[free][:, free].tocsr() for K in (K_lam, K_G)]
+    rows = [(QT @ K @ Q).tocsr()[free] for K in (K_lam, K_G)]
+    parts = [r[:, free].tocsr() for r in rows]
+    fixed_dofs = np.flatnonzero(fixed)
+    coupling = [r[:, fixed_dofs].tocsr() for r in rows]  # Q is the identity on Dirichlet DOFs
     return ContactSystem(mesh=mesh, free=free, nodes=nodes, normal=normal, tangent=tangent,
                          cn=position[2 * nodes], ct=position[2 * nodes + 1],
-                         K_lam=parts[0], K_G=parts[1])
+                         K_lam=parts[0], K_G=parts[1], fixed=fixed_dofs,
+                         D_lam=coupling[0], D_G=coupling[1])

@@ -16,9 +16,17 @@ Three solvers, which agree to round-off:
 * ``arpack`` (shift sigma != 0): ARPACK on (K_c - sigma M)^-1 M, with the rank-p0 matrix
   M = E_t gamma R_n (slipping tangential rows <- gamma * normal reaction rows). Its
   eigenvalues are theta = 1/(alpha - sigma): the alphas nearest sigma come first.
-* ``dense``: the Schur complement S of K onto the 2p contact DOFs (one factorization of the
-  interior block, 2p solves), then every eigenvalue of the dense pencil
-  B x = (1/alpha) S_uu x by QZ, u = slipping tangential + free contact DOFs.
+* ``dense``: the Schur complement S of K onto the 2p contact DOFs, then every eigenvalue
+  of the dense pencil B x = (1/alpha) S_uu x, u = slipping tangential + free contact DOFs,
+  B = gamma * (slipping normal rows of S) on the slipping tangential rows: S_uu is SPD, so
+  this is the p0 x p0 matrix T = gamma S_nu S_uu^-1 E (Cholesky, then dense eig). S comes
+  from the linear-solver backend (:func:`critfric.linsolve.schur`): PARDISO returns it from
+  the factorization itself (all eigenvalues at about the cost of one factorization); SciPy
+  factors the interior block and solves once per contact DOF.
+
+``backend`` ("auto", "scipy", "pardiso"; :mod:`critfric.linsolve`) picks the sparse solver.
+Method "auto": dense when K is small or the backend gives S from its factorization (and
+p <= SCHUR_MAX_CONTACT), else ARPACK.
 
 Criteria (stated once, used everywhere):
 
@@ -41,14 +49,15 @@ import scipy.sparse.linalg as spla
 
 from .contact import FREE, SLIP, STUCK, ContactSystem
 from .errors import SolverError
-from .linsolve import factorize
+from .linsolve import factorize, resolve_backend, schur
 
 INFINITE_TOL = 1e-6
 RESIDUAL_TOL = 1e-6
 AUTO_DENSE_DOFS = 5000  # method "auto": dense up to this many free DOFs
 EXPLICIT_T_MAX = 3000  # widest ARPACK fallback: form T explicitly up to this p0
 WIDEN = 4  # ARPACK's second try asks for WIDEN times more eigenvalues
-DENSE_MEMORY = 4e9  # bytes: the dense Schur path refuses above this
+SCHUR_MAX_CONTACT = 6000  # dense Schur path: at most this many contact nodes
+FAST_SCHUR = ("pardiso",)  # backends whose factorization returns S itself
 START_SEED = 20030328  # fixed ARPACK start vector: identical runs give identical results
 
 
@@ -91,6 +100,7 @@ class Spectrum:
     applications: int = 0  # ARPACK operator applications (linear solves)
     warnings: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)  # how the search went, for the log
+    backend: str = "scipy"  # linear-solver backend used (critfric.linsolve)
 
     @property
     def complex_count(self) -> int:
@@ -143,7 +153,7 @@ class _Problem:
 class _Reduced(_Problem):
     """K_c (stuck DOFs and slipping normal DOFs eliminated), factored once."""
 
-    def __init__(self, K, system, state, *, shift=0.0):
+    def __init__(self, K, system, state, *, shift=0.0, backend="scipy"):
         super().__init__(K, system, state)
         stuck = state.status == STUCK
         elim = np.concatenate([system.cn[self.slip], system.cn[stuck], system.ct[stuck]])
@@ -155,12 +165,13 @@ class _Reduced(_Problem):
         self.Kc = K[self.kept][:, self.kept].tocsc()
         self.Rn = K[system.cn[self.slip]][:, self.kept].tocsr()
         if shift == 0.0:
-            self.factor = factorize(self.Kc, symmetric=True)
+            self.factor = factorize(self.Kc, symmetric=True, backend=backend)
         else:  # M: slipping tangential rows <- gamma * normal reaction rows (rank p0)
             E = sp.csr_matrix((self.gamma, (self.tc, np.arange(len(self.slip)))),
                               shape=(self.Kc.shape[0], len(self.slip)))
             self.M = (E @ self.Rn).tocsr()
-            self.factor = factorize((self.Kc - shift * self.M).tocsc(), symmetric=False)
+            self.factor = factorize((self.Kc - shift * self.M).tocsc(), symmetric=False,
+                                    backend=backend)
         self.applications = 0
 
     def solve_tangential(self, r: np.ndarray) -> np.ndarray:
@@ -197,44 +208,49 @@ class _Reduced(_Problem):
 
 
 def solve_dense(K, system: ContactSystem, state: ContactState, *, count: int,
-                real_tol: float) -> Spectrum:
+                real_tol: float, backend: str = "scipy") -> Spectrum:
     """Every eigenvalue, from the dense pencil on the Schur complement onto Gamma_C."""
     prob = _Problem(K, system, state)
-    p, m = system.n_contact, K.shape[0]
-    c = np.concatenate([system.cn, system.ct])
-    others = np.setdiff1d(np.arange(m), c)
-    if 8.0 * len(others) * 2 * p > DENSE_MEMORY:
-        raise SolverError(f"the dense path would need {8e-9 * len(others) * 2 * p:.1f} GB for "
-                          f"{m} DOFs and {p} contact nodes; use method = 'arpack'")
-    Kic = K[others][:, c].toarray()
-    Z = (factorize(K[others][:, others].tocsc()).solve(Kic) if len(others)
-         else np.zeros((0, 2 * p)))
-    S = K[c][:, c].toarray() - Kic.T @ Z
-    S = 0.5 * (S + S.T)
-    freen = np.flatnonzero(state.status == FREE)
+    p = system.n_contact
+    if p > SCHUR_MAX_CONTACT:
+        raise SolverError(f"the dense path would form a {2 * p} x {2 * p} Schur complement "
+                          f"({p} contact nodes > {SCHUR_MAX_CONTACT}); use method = 'arpack'")
+    sc = schur(K, np.concatenate([system.cn, system.ct]), backend=backend)
+    spec = schur_spectrum(prob, sc.S, sc.extend, count=count, real_tol=real_tol)
+    spec.backend = sc.backend
+    return spec
+
+
+def schur_spectrum(prob: _Problem, S: np.ndarray, extend, *, count: int,
+                   real_tol: float) -> Spectrum:
+    """Every eigenvalue of a contact state from the Schur complement S (2p x 2p, contact
+    DOFs in the order cn, ct); ``extend`` maps contact values to the full Phi."""
+    p = prob.system.n_contact
+    freen = np.flatnonzero(prob.state.status == FREE)
     u = np.concatenate([p + prob.slip, freen, p + freen])
-    A = S[np.ix_(u, u)]
-    B = np.zeros_like(A)
-    B[: len(prob.slip)] = prob.gamma[:, None] * S[np.ix_(prob.slip, u)]
-    beta, vecs = la.eig(B, A)
+    p0 = len(prob.slip)
+    try:  # W = S_uu^-1 E (E: slipping tangential columns, the first p0 of u)
+        W = la.cho_solve(la.cho_factor(S[np.ix_(u, u)]), np.eye(len(u), p0))
+    except la.LinAlgError:
+        raise SolverError("the Schur complement onto the contact DOFs is not positive "
+                          "definite: check that the Dirichlet edges hold the body") from None
+    T = prob.gamma[:, None] * (S[np.ix_(prob.slip, u)] @ W)
+    beta, vecs = la.eig(T)
     alpha, real, index, n_inf = _classify(beta, real_tol)
-    n_inf -= 2 * len(freen)  # the free rows always give zero betas: not eigenvalues of (3.2)
 
     def phi_of(j):
         phic = np.zeros(2 * p)
-        phic[u] = _real_vector(vecs[:, j])
-        out = np.zeros(m)
-        out[c] = phic
-        out[others] = -Z @ phic
-        return out
+        phic[u] = W @ _real_vector(vecs[:, j])
+        return extend(phic)
 
-    return _finish(prob, alpha, real, index, phi_of, count, "dense", max(n_inf, 0), 0)
+    return _finish(prob, alpha, real, index, phi_of, count, "dense", n_inf, 0)
 
 
 def solve_arpack(K, system: ContactSystem, state: ContactState, *, count: int, shift: float,
-                 tol: float, maxiter: int | None, real_tol: float) -> Spectrum:
+                 tol: float, maxiter: int | None, real_tol: float,
+                 backend: str = "scipy") -> Spectrum:
     """ARPACK on T (shift 0) or on the shifted pencil, widening until `count` positives."""
-    red = _Reduced(K, system, state, shift=shift)
+    red = _Reduced(K, system, state, shift=shift, backend=backend)
     p0 = len(red.slip)
     notes: list[str] = []
     if shift == 0.0:
@@ -268,7 +284,7 @@ def solve_arpack(K, system: ContactSystem, state: ContactState, *, count: int, s
                               f"p0 = {p0} is too many to form T; try a larger [solve] tol, a "
                               "smaller count, method = 'dense' or a shift near the value sought")
         if shift != 0.0:
-            red.factor = factorize(red.Kc, symmetric=True)
+            red.factor = factorize(red.Kc, symmetric=True, backend=backend)
         beta, vecs = la.eig(red.explicit_T())
         if n >= 4:
             notes.append(f"T formed explicitly ({p0} solves) to find every eigenvalue")
@@ -286,6 +302,7 @@ def solve_arpack(K, system: ContactSystem, state: ContactState, *, count: int, s
 
     spec = _finish(red, alpha, real, index, phi_of, count, method, n_inf, red.applications)
     spec.notes[:0] = notes
+    spec.backend = red.factor.backend
     return spec
 
 
@@ -326,14 +343,18 @@ def _finish(prob, alpha, real, index, phi_of, count, method, n_inf, applications
 
 
 def solve(K, system: ContactSystem, state: ContactState | None = None, *, method="auto",
-          count=1, shift=0.0, tol=0.0, maxiter=None, real_tol=1e-8, gamma=1) -> Spectrum:
+          count=1, shift=0.0, tol=0.0, maxiter=None, real_tol=1e-8, gamma=1,
+          backend="auto") -> Spectrum:
     """Critical friction coefficients of a contact state (default: all nodes slipping)."""
     state = state or ContactState.all_slipping(system.n_contact, gamma)
+    backend = resolve_backend(backend)
     if method == "auto":
-        method = "dense" if (K.shape[0] <= AUTO_DENSE_DOFS or state.n_slip < 4) else "arpack"
+        small = K.shape[0] <= AUTO_DENSE_DOFS or state.n_slip < 4
+        fast = backend in FAST_SCHUR and system.n_contact <= SCHUR_MAX_CONTACT and shift == 0.0
+        method = "dense" if (small or fast) else "arpack"
     if method == "dense":
-        return solve_dense(K, system, state, count=count, real_tol=real_tol)
+        return solve_dense(K, system, state, count=count, real_tol=real_tol, backend=backend)
     if method == "arpack":
         return solve_arpack(K, system, state, count=count, shift=shift, tol=tol,
-                            maxiter=maxiter, real_tol=real_tol)
+                            maxiter=maxiter, real_tol=real_tol, backend=backend)
     raise SolverError(f"unknown eigen method {method!r}; allowed: auto, arpack, dense")

@@ -22,8 +22,13 @@ class CaseError(CritfricError):
     def __init__(self, message: str, *, file: str | None = None, key: str | None = None):
         self.file = file
         self.key = key
+        self.detail = message
         where = ": ".join(part for part in (file, f"[{key}]" if key else None) if part)
         super().__init__(f"{where}: {message}" if where else message)
+
+    def located(self, file: str) -> "CaseError":
+        """This error, naming ``file`` if it named no file yet."""
+        return self if self.file else CaseError(self.detail, file=file, key=self.key)
 
 
 class SolverError(CritfricError):

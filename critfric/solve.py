@@ -18,7 +18,10 @@ from . import eigen
 from .assembly import assemble_elasticity, lame
 from .case import Case, load_case
 from .contact import ContactSystem, contact_system
+from .errors import CaseError
 from .geometry import parallelogram, polygon, rectangle, validate
+from .gmshfile import file_mesh
+from .guards import check_dofs, check_held, polygon_footprint
 from .mesh import Mesh, build_mesh, inline_mesh
 
 
@@ -104,21 +107,39 @@ def geometry_polygon(case: Case):
     return validate(poly)
 
 
-def make_mesh(case: Case) -> Mesh:
+def make_mesh(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False) -> Mesh:
+    """The mesh of a case; gmsh shapes pass the resource guard first (:mod:`.guards`)."""
     g, m = case.geometry, case.mesh
     if g["shape"] == "mesh":
         cells = g["triangles"] if g["triangles"] is not None else g["quads"]
         return inline_mesh(np.asarray(g["nodes"], dtype=float), np.asarray(cells),
                            g["edges"], m["element"])
-    return build_mesh(geometry_polygon(case), size=m["size"], element=m["element"],
+    if g["shape"] == "file":
+        return file_mesh(case, max_dofs=max_dofs, trust_geo=trust_geo)
+    poly = geometry_polygon(case)
+    footprint = polygon_footprint(poly.vertices)
+    check_dofs(footprint.dofs(m["size"], m["element"]), element=m["element"],
+               what=f"mesh.size = {m['size']:g}", source=case.source, footprint=footprint,
+               max_dofs=max_dofs)
+    return build_mesh(poly, size=m["size"], element=m["element"],
                       structured=m["structured"], grading=m["grading"],
                       contact=case.boundary["contact"])
 
 
-def prepare(case: Case) -> Prepared:
-    """Mesh, assemble and classify the boundary of a case (independent of nu)."""
+def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False) -> Prepared:
+    """Mesh, assemble and classify the boundary of a case (independent of nu).
+
+    max_dofs : refuse a mesh estimated above this many DOFs (default: what memory allows).
+    trust_geo: mesh a .geo script even if it can run programs or read or write files.
+    """
     t0 = time.perf_counter()
-    mesh = make_mesh(case)
+    try:
+        mesh = make_mesh(case, max_dofs=max_dofs, trust_geo=trust_geo)
+    except CaseError as exc:
+        raise exc.located(case.source) from None
+    dirichlet = [name for name in case.boundary["dirichlet"] if name in mesh.edges]
+    if dirichlet:  # unknown names are reported by contact_system
+        check_held(mesh, mesh.edge_nodes(dirichlet), source=case.source)
     t1 = time.perf_counter()
     K_lam, K_G = assemble_elasticity(mesh)
     t2 = time.perf_counter()
@@ -169,10 +190,11 @@ def solve_prepared(prep: Prepared, case: Case) -> Result:
     )
 
 
-def solve_case(case: Case | str | Path, *, overrides: dict[str, Any] | None = None) -> Result:
+def solve_case(case: Case | str | Path, *, overrides: dict[str, Any] | None = None,
+               max_dofs: int | None = None, trust_geo: bool = False) -> Result:
     """Load (if needed), mesh, assemble and solve a case; return its :class:`Result`."""
     if not isinstance(case, Case):
         case = load_case(case, overrides=overrides)
     elif overrides:
         case = case.with_overrides(overrides)
-    return solve_prepared(prepare(case), case)
+    return solve_prepared(prepare(case, max_dofs=max_dofs, trust_geo=trust_geo), case)

@@ -1,0 +1,213 @@
+"""Guards: refuse a mesh that would not fit in memory, and lock an output file while writing.
+
+Resources: before meshing, the node count is estimated from the domain's area A, perimeter P
+and vertex count (``nodes(h) = k (A / (c h^2) + P / (2 h) + n_v)``, c = sqrt(3)/2 for
+triangles and 1 for quads, k = 4 for P2/Q2), the DOFs are twice that, and the peak memory of
+a solve is ``BASE_BYTES + BYTES_PER_DOF_LOG * n log2 n`` (sparse LU fill; measured on P1, P2,
+Q1 and Q2 unit squares from 1e4 to 1e6 DOFs, conservative by about 20%). A solve above the
+memory available (or above ``max_dofs`` when given) is a :class:`CaseError` that gives the
+estimate and the finest mesh size that fits.
+
+Locks: :func:`output_lock` holds an exclusive ``fcntl`` lock on ``.<name>.lock`` next to the
+output for the whole solve; a second writer is refused at once.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import math
+import os
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import CaseError
+
+BYTES_PER_DOF_LOG = 250.0
+BASE_BYTES = 150e6
+_CELL_AREA = {"P1": math.sqrt(3) / 2, "P2": math.sqrt(3) / 2, "Q1": 1.0, "Q2": 1.0}
+
+
+@dataclass(frozen=True)
+class Footprint:
+    """What the node count of a mesh depends on: area, perimeter and corner count."""
+
+    area: float
+    perimeter: float
+    n_vertices: int
+
+    def dofs(self, h: float, element: str) -> float:
+        """Estimated DOF count at mesh size ``h`` (a float: may be huge or inf)."""
+        k = 4.0 if element in ("P2", "Q2") else 1.0
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            x = np.float64(1.0) / np.float64(h)
+            nodes = k * (self.area / _CELL_AREA[element] * x * x + self.perimeter / 2 * x
+                         + self.n_vertices)
+        return float(2.0 * nodes) if np.isfinite(nodes) else math.inf
+
+    def finest_size(self, max_dofs: float, element: str) -> float:
+        """The smallest h with ``dofs(h) <= max_dofs`` (inf if even one cell is too many)."""
+        k = 4.0 if element in ("P2", "Q2") else 1.0
+        a, b = self.area / _CELL_AREA[element], self.perimeter / 2
+        c = self.n_vertices - max_dofs / (2 * k)
+        if c >= 0:
+            return math.inf
+        x = (-b + math.sqrt(b * b - 4 * a * c)) / (2 * a)  # positive root in x = 1/h
+        return 1.0 / x
+
+
+def available_memory() -> float:
+    """Bytes this process may still use: MemAvailable, capped by a cgroup limit if any."""
+    avail = math.inf
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                avail = float(line.split()[1]) * 1024
+    except OSError:
+        pass
+    if not math.isfinite(avail):
+        try:
+            avail = float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+        except (ValueError, OSError, AttributeError):
+            avail = 8e9
+    try:
+        limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
+        used = Path("/sys/fs/cgroup/memory.current").read_text().strip()
+        if limit.isdigit() and used.isdigit():
+            avail = min(avail, float(int(limit) - int(used)))
+    except OSError:
+        pass
+    return avail
+
+
+def memory_estimate(n_dofs: float) -> float:
+    """Peak bytes of a solve with ``n_dofs`` degrees of freedom."""
+    n = max(float(n_dofs), 2.0)
+    return BASE_BYTES + BYTES_PER_DOF_LOG * n * math.log2(n) if math.isfinite(n) else math.inf
+
+
+def dofs_that_fit(memory: float) -> float:
+    """The largest DOF count whose :func:`memory_estimate` fits in ``memory`` bytes."""
+    lo, hi = 2.0, 2.0
+    while memory_estimate(hi) <= memory and hi < 1e15:
+        lo, hi = hi, hi * 2
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if memory_estimate(mid) <= memory else (lo, mid)
+    return lo
+
+
+def _bytes(b: float) -> str:
+    if not math.isfinite(b):
+        return "unbounded"
+    for unit in ("B", "kB", "MB", "GB", "TB", "PB"):
+        if b < 1000 or unit == "PB":
+            return f"{b:.3g} {unit}"
+        b /= 1000
+    return f"{b:.3g} PB"
+
+
+def check_dofs(n_dofs: float, *, element: str, what: str, source: str | None,
+               key: str | None = "mesh.size", footprint: Footprint | None = None,
+               max_dofs: int | None = None) -> None:
+    """Refuse ``n_dofs`` above ``max_dofs`` or, without it, above what memory allows.
+
+    ``what`` says where the count comes from (e.g. "mesh.size = 1e-05"); with a
+    ``footprint`` the message also gives the finest mesh size that fits.
+    """
+    need = memory_estimate(n_dofs)
+    if max_dofs is not None:
+        if n_dofs <= max_dofs:
+            return
+        limit, why = float(max_dofs), f"more than --max-dofs {max_dofs}"
+    else:
+        avail = available_memory()
+        if need <= avail:
+            return
+        limit = dofs_that_fit(avail)
+        why = f"needing about {_bytes(need)} of memory; {_bytes(avail)} is available"
+    message = f"{what} gives about {n_dofs:.3g} DOFs ({element}), {why}"
+    if footprint is not None:
+        finest = footprint.finest_size(limit, element)
+        if math.isfinite(finest):
+            message += (f"; the finest mesh size that fits is about {finest:.3g} "
+                        f"({footprint.dofs(finest, element):.3g} DOFs)")
+    override = "a larger --max-dofs" if max_dofs is not None else "--max-dofs N to override"
+    raise CaseError(f"{message}. Use a coarser mesh, or pass {override}", file=source, key=key)
+
+
+def polygon_footprint(vertices: np.ndarray) -> Footprint:
+    """Footprint of a closed polygon (n, 2), either orientation."""
+    v = np.asarray(vertices, dtype=np.float64)
+    w = np.roll(v, -1, axis=0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        area = 0.5 * abs(float(np.sum(v[:, 0] * w[:, 1] - w[:, 0] * v[:, 1])))
+        perimeter = float(np.linalg.norm(w - v, axis=1).sum())
+    return Footprint(area, perimeter, len(v))
+
+
+# ---------------------------------------------------------------------------------- locks
+@contextmanager
+def output_lock(path: Path | str):
+    """Hold an exclusive lock for writing ``path``; refuse at once if another process has it.
+
+    The lock is ``fcntl.flock`` on ``.<name>.lock`` in the same directory (so a killed writer
+    never blocks a later run); the file is removed when the lock is released.
+    """
+    path = Path(path)
+    lock = path.with_name(f".{path.name}.lock")
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise CaseError(f"cannot write in directory {str(path.parent)!r} ({exc.strerror}); "
+                            "allowed: a file in a writable directory", file=str(path),
+                            key="output.file") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.read(fd, 64).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
+            raise CaseError(f"is being written by another critfric process (pid {holder}); "
+                            "wait for it to finish or choose another output file",
+                            file=str(path), key="output.file") from None
+        try:  # the lock file may have been removed by its previous holder: start again
+            same = os.stat(lock).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        os.ftruncate(fd, 0)
+        os.write(fd, str(os.getpid()).encode())
+        yield path
+    finally:
+        try:
+            os.unlink(lock)
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+
+
+def check_held(mesh, dirichlet_nodes: np.ndarray, *, source: str | None = None) -> None:
+    """Refuse a mesh with a connected piece that touches no Dirichlet node: it would float
+    (a rigid motion left, a singular stiffness matrix)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    cells = np.asarray(mesh.cells)
+    n = len(mesh.points)
+    star = sp.coo_matrix((np.ones(cells.size), (np.repeat(cells[:, 0], cells.shape[1]),
+                                                cells.ravel())), shape=(n, n))
+    count, labels = connected_components(star, directed=False)
+    held = np.zeros(count, dtype=bool)
+    held[labels[np.asarray(dirichlet_nodes, dtype=np.int64)]] = True
+    if not held.all():
+        node = int(np.flatnonzero(~held[labels])[0])
+        raise CaseError(f"{np.count_nonzero(~held)} of the {count} connected pieces of the body "
+                        f"touch no Dirichlet edge (e.g. node {node} at "
+                        f"{mesh.points[node].tolist()}), so they float freely; allowed: every "
+                        "piece clamped on some edge", file=source, key="boundary.dirichlet")

@@ -1,0 +1,333 @@
+"""Sweeps over the Poisson ratio, the mesh size and the element, with h -> 0 limits.
+
+A sweep point is (nu, size, element). Points sharing (size, element) share one mesh and one
+assembly (``prepare``): only ``lam K_lam + G K_G`` and the eigenproblem change with nu. Each
+worker keeps a small cache of prepared systems and the scheduler (:mod:`critfric.workers`)
+hands a worker all the points of a (size, element) group, split only to balance the load.
+
+Every finished point is appended to the sweep file (:mod:`critfric.sweepfile`) by the parent
+at once, so an interrupted sweep re-run with the same arguments computes only what is missing.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import threading
+import time
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .case import ELEMENTS, Case, from_dict
+from .errors import CaseError
+from .extrapolate import Limit, limits_of
+from .solve import Prepared, prepare, solve_prepared
+
+NU_POINTS = 11  # points of a range A:B given without N
+NU_GAP = 1e-3  # a range reaching nu = 1/2 stops at 1/2 - min(NU_GAP, step / 2)
+CACHE_SIZE = 2  # prepared systems kept per worker process
+
+
+# ------------------------------------------------------------------------------ the grid
+@dataclass(frozen=True)
+class Point:
+    """One sweep point; ``size`` is None for a case with an inline mesh."""
+
+    nu: float
+    size: float | None
+    element: str
+
+    @property
+    def key(self) -> tuple:
+        return (self.element, -1.0 if self.size is None else self.size, self.nu)
+
+    @property
+    def group(self) -> tuple:
+        return (self.size, self.element)
+
+
+@dataclass
+class Grid:
+    """The values swept: every combination of ``nu`` x ``size`` x ``element``."""
+
+    nu: list[float]
+    size: list[float | None]
+    element: list[str]
+    notes: list[str] = field(default_factory=list)
+
+    def points(self) -> list[Point]:
+        """All points, grouped by (size, element), nu ascending within a group."""
+        return [Point(nu, size, el) for el in self.element for size in self.size
+                for nu in self.nu]
+
+    def to_json(self) -> dict:
+        return {"nu": list(self.nu), "size": list(self.size), "element": list(self.element)}
+
+
+def _float(text: str, what: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise CaseError(f"got {text!r}; allowed: a number", key=what) from None
+    if not math.isfinite(value):
+        raise CaseError(f"got {text!r}; allowed: a finite number", key=what)
+    return value
+
+
+def parse_nu(text: str) -> tuple[list[float], list[str]]:
+    """``A:B[:N]`` (N points from A to B, default 11) or ``v1,v2,...``; values, notes.
+
+    Every value must lie in [0, 0.5); only a range may end at 0.5, and then its last point is
+    moved to 0.5 - min(1e-3, step/2), never at the singular (incompressible) value itself.
+    """
+    notes: list[str] = []
+    text = text.strip()
+    allowed = "Poisson ratios in [0, 0.5): A:B[:N] (B may be 0.5) or v1,v2,..."
+    if ":" in text:
+        parts = text.split(":")
+        if len(parts) not in (2, 3):
+            raise CaseError(f"got {text!r}; allowed: {allowed}", key="--nu")
+        lo, hi = _float(parts[0], "--nu"), _float(parts[1], "--nu")
+        n = NU_POINTS
+        if len(parts) == 3:
+            if not parts[2].strip().isdigit() or int(parts[2]) < 2:
+                raise CaseError(f"got N = {parts[2]!r} in {text!r}; allowed: an integer >= 2",
+                                key="--nu")
+            n = int(parts[2])
+        if not (0.0 <= lo < hi <= 0.5):
+            raise CaseError(f"got {text!r}; allowed: 0 <= A < B <= 0.5", key="--nu")
+        values = np.linspace(lo, hi, n)
+        if hi == 0.5:
+            values[-1] = 0.5 - min(NU_GAP, 0.5 * (values[-1] - values[-2]))
+            notes.append(f"nu = 0.5 is singular (incompressible): the range is sampled up to "
+                         f"nu = {values[-1]:.6g}, never at 0.5")
+        return [float(v) for v in values], notes
+    values = [_float(v, "--nu") for v in text.split(",") if v.strip()]
+    bad = [v for v in values if not 0.0 <= v < 0.5]
+    if not values or bad:
+        raise CaseError(f"got {text!r}; allowed: {allowed}", key="--nu")
+    return sorted(set(values)), notes
+
+
+def parse_sizes(text: str) -> list[float]:
+    """``h1,h2,...``: distinct positive mesh sizes, coarsest first."""
+    values = [_float(v, "--size") for v in text.split(",") if v.strip()]
+    if not values or any(v <= 0 for v in values):
+        raise CaseError(f"got {text!r}; allowed: positive mesh sizes h1,h2,...", key="--size")
+    return sorted(set(values), reverse=True)
+
+
+def parse_elements(text: str) -> list[str]:
+    """``P1,P2,...``: distinct element names."""
+    values = [v.strip() for v in text.split(",") if v.strip()]
+    bad = [v for v in values if v not in ELEMENTS]
+    if not values or bad:
+        raise CaseError(f"got {text!r}; allowed: a comma list of " + ", ".join(ELEMENTS),
+                        key="--element")
+    return list(dict.fromkeys(values))
+
+
+def make_grid(case: Case, *, nu: str | None = None, size: str | None = None,
+              element: str | None = None) -> Grid:
+    """The grid of a sweep of ``case``; options left out take the case's own value.
+
+    Every (size, element) is validated against the case here, before any work is done.
+    """
+    nus, notes = parse_nu(nu) if nu is not None else ([case.material["nu"]], [])
+    sizes = parse_sizes(size) if size is not None else [case.mesh["size"]]
+    elements = parse_elements(element) if element is not None else [case.mesh["element"]]
+    for s in sizes:
+        for el in elements:
+            case.with_overrides(_overrides(Point(nus[0], s, el)))
+    return Grid(nus, sizes, elements, notes)
+
+
+def _overrides(point: Point) -> dict:
+    return {"material.nu": point.nu, "mesh.size": point.size, "mesh.element": point.element}
+
+
+# ------------------------------------------------------------------------------ one point
+_CACHE: OrderedDict[tuple, Prepared] = OrderedDict()
+_CACHE_LOCK = threading.Lock()  # Dask runs tasks in threads; gmsh is not thread-safe
+
+
+def worker_spec(case: Case, *, reuse: bool = True) -> dict:
+    """What a worker needs to rebuild the case of any point (plain, picklable data)."""
+    ident = hashlib.sha1(case.to_toml().encode()).hexdigest()
+    return {"raw": case.raw, "source": case.source, "name": case.name, "text": case.text,
+            "count": case.solve["count"], "reuse": reuse, "id": ident}
+
+
+def _prepared(spec: dict, case: Case, point: Point) -> Prepared:
+    if not spec["reuse"]:
+        with _CACHE_LOCK:
+            return prepare(case)
+    key = (spec["id"], point.size, point.element)
+    with _CACHE_LOCK:
+        if key not in _CACHE:
+            _CACHE[key] = prepare(case)
+            while len(_CACHE) > CACHE_SIZE:
+                _CACHE.popitem(last=False)
+        _CACHE.move_to_end(key)
+        return _CACHE[key]
+
+
+def empty_row(point: Point, status: str, seconds: float = 0.0) -> dict:
+    """A row of a point without values (a failed point)."""
+    return {"nu": point.nu, "size": point.size, "element": point.element, "h": math.nan,
+            "n_dofs": -1, "n_contact": -1, "positive": [], "negative": [],
+            "complex_count": -1, "seconds": seconds, "status": status}
+
+
+def run_point(spec: dict, point: Point) -> dict:
+    """Solve one point (in a worker); a failure is returned as a row, never raised."""
+    t0 = time.perf_counter()
+    try:
+        base = from_dict(spec["raw"], source=spec["source"], name=spec["name"],
+                         text=spec["text"])
+        case = base.with_overrides(_overrides(point))
+        result = solve_prepared(_prepared(spec, case, point), case)
+    except Exception as exc:  # noqa: BLE001 - a sweep records a failed point and goes on
+        return empty_row(point, f"failed: {type(exc).__name__}: {exc}",
+                         time.perf_counter() - t0)
+    count = spec["count"]
+    pos, neg = result.positive[:count], result.negative[:count]
+    row = empty_row(point, "ok" if len(pos) or len(neg) else "no-real-eigenvalue")
+    row.update(h=result.h, n_dofs=result.n_dofs, n_contact=result.n_contact,
+               positive=[float(v) for v in pos], negative=[float(v) for v in neg],
+               complex_count=result.complex_count, seconds=time.perf_counter() - t0)
+    return row
+
+
+# ------------------------------------------------------------------------------ the sweep
+@dataclass
+class Sweep:
+    """A finished sweep: its file, every point (grid order), the limits and what ran now."""
+
+    path: Path
+    grid: Grid
+    rows: list[dict]
+    limits: list[Limit]
+    computed: int
+    seconds: float
+
+    def summary(self) -> dict:
+        """The JSON of ``critfric sweep --json``."""
+        keys = ("nu", "size", "element", "h", "n_dofs", "n_contact", "positive", "negative",
+                "complex_count", "status", "seconds")
+        points = [{k: _json_value(r[k]) for k in keys} for r in self.rows]
+        return {"points": points, "limits": [lim.to_json() for lim in self.limits]}
+
+
+def _json_value(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, int) and v < 0:
+        return None
+    return v
+
+
+def default_jobs() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = None,
+              scheduler: str | None = None, force: bool = False, reuse: bool = True,
+              on_point: Callable[[dict, int, int], None] | None = None) -> Sweep:
+    """Run (or resume) a sweep into ``output``; return every point and the h -> 0 limits.
+
+    jobs      : local worker processes (default: all cores); 1 runs in this process.
+    scheduler : address of a Dask distributed scheduler, instead of local processes.
+    force     : discard an existing ``output`` written for another case or grid.
+    reuse     : reuse meshes and assemblies across nu (off only to measure its benefit).
+    on_point  : called as on_point(row, done, total) after each point is written, and once
+                with row None before the first (done: the points already in the file).
+    """
+    from . import sweepfile, workers
+
+    t0 = time.perf_counter()
+    path = Path(output)
+    done = sweepfile.open_sweep(path, case=case, grid=grid, force=force)
+    points = grid.points()
+    todo = [p for p in points if p.key not in done]
+    finished = len(points) - len(todo)
+    if on_point is not None:
+        on_point(None, finished, len(points))
+    if todo:
+        spec = worker_spec(case, reuse=reuse)
+        jobs = max(1, min(jobs or default_jobs(), len(todo)))
+        if scheduler:
+            stream = workers.run_dask(scheduler, run_point, spec, todo)
+        elif jobs == 1:
+            stream = ((p, run_point(spec, p)) for p in todo)
+        else:
+            stream = workers.run_local(jobs, run_point, spec, todo)
+        try:
+            for point, row in stream:
+                sweepfile.append_point(path, row)
+                finished += 1
+                if on_point is not None:
+                    on_point(row, finished, len(points))
+        finally:
+            close = getattr(stream, "close", None)
+            if close is not None:
+                close()
+    stored = {tuple(_row_key(r)): r for r in sweepfile.read_sweep(path)["rows"]}
+    rows = [stored[p.key] for p in points]
+    limits = limits_of(rows)
+    sweepfile.write_limits(path, limits)
+    return Sweep(path, grid, rows, limits, len(todo), time.perf_counter() - t0)
+
+
+def _row_key(row: dict) -> tuple:
+    return (row["element"], -1.0 if row["size"] is None else row["size"], row["nu"])
+
+
+def default_output(case: Case) -> Path:
+    """``<case name>_sweep.h5`` in the current directory."""
+    return Path(f"{case.name}_sweep.h5")
+
+
+def report(sweep: Sweep) -> str:
+    """The text summary of ``critfric sweep``: every point, then the h -> 0 limits."""
+    def num(v, fmt):
+        return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else fmt % v
+
+    rows = sweep.rows
+    lines = [f"sweep {sweep.path}: {len(rows)} points ({len(sweep.grid.nu)} nu x "
+             f"{len(sweep.grid.size)} size x {len(sweep.grid.element)} element), "
+             f"{sweep.computed} computed now in {sweep.seconds:.1f} s"]
+    head = (f"{'nu':>7} {'element':<7} {'size':>8} {'h':>8} {'n_dofs':>8} {'p':>5} "
+            f"{'lowest > 0':>14} {'lowest < 0':>14} {'complex':>7} {'seconds':>8}  status")
+    lines += [head, "-" * len(head)]
+    for r in rows:
+        v = {k: _json_value(r[k]) for k in ("size", "h", "n_dofs", "n_contact",
+                                            "complex_count")}
+        pos = r["positive"][0] if r["positive"] else None
+        neg = r["negative"][0] if r["negative"] else None
+        lines.append(f"{r['nu']:>7.4g} {r['element']:<7} {num(v['size'], '%.4g'):>8} "
+                     f"{num(v['h'], '%.4g'):>8} {num(v['n_dofs'], '%d'):>8} "
+                     f"{num(v['n_contact'], '%d'):>5} {num(pos, '%.10f'):>14} "
+                     f"{num(neg, '%.8f'):>14} {num(v['complex_count'], '%d'):>7} "
+                     f"{r['seconds']:>8.2f}  {r['status']}")
+    if not sweep.limits:
+        lines.append("h -> 0 limits: need at least three sizes (--size h1,h2,h3)")
+        return "\n".join(lines)
+    lines.append("")
+    lines.append("h -> 0 limits (Richardson extrapolation of the three finest sizes, "
+                 "observed order p)")
+    head = f"{'nu':>7} {'element':<7} {'family':<8} {'limit':>14} {'error':>9} {'p':>5}  status"
+    lines += [head, "-" * len(head)]
+    for lim in sweep.limits:
+        lines.append(f"{lim.nu:>7.4g} {lim.element:<7} {lim.family:<8} "
+                     f"{num(lim.limit, '%.10f'):>14} {num(lim.error, '%.1e'):>9} "
+                     f"{num(lim.order, '%.2f'):>5}  {lim.status}")
+    return "\n".join(lines)

@@ -1,0 +1,186 @@
+"""Resource guards, output locks, Ctrl-C and atomic writes."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from critfric import prepare, read_summary, solve_case
+from critfric.case import loads_case
+from critfric.cli import app
+from critfric.errors import CaseError
+from critfric.geometry import polygon, rectangle
+from critfric.guards import (Footprint, check_dofs, dofs_that_fit, memory_estimate,
+                             output_lock, polygon_footprint)
+from critfric.mesh import build_mesh
+from critfric.results import atomic_h5
+
+REPO = Path(__file__).resolve().parent.parent
+runner = CliRunner()
+
+L_SHAPE = [[0, 0], [2, 0], [2, 1], [1, 1], [1, 2], [0, 2]]
+
+
+# ------------------------------------------------------------------------ estimates
+@pytest.mark.parametrize("element", ["P1", "P2", "Q1", "Q2"])
+@pytest.mark.parametrize("vertices", [[[0, 0], [1, 0], [1, 1], [0, 1]], L_SHAPE])
+def test_dof_estimate_is_within_15_percent_of_the_mesh(element, vertices):
+    poly = polygon(np.array(vertices, dtype=float))
+    size = 0.05
+    mesh = build_mesh(poly, size=size, element=element)
+    estimate = polygon_footprint(poly.vertices).dofs(size, element)
+    assert estimate == pytest.approx(2 * mesh.n_nodes, rel=0.15)
+
+
+def test_finest_size_inverts_the_estimate():
+    fp = polygon_footprint(np.array(L_SHAPE, dtype=float))
+    for element in ("P1", "Q2"):
+        h = fp.finest_size(1e6, element)
+        assert fp.dofs(h, element) == pytest.approx(1e6, rel=1e-9)
+    assert fp.finest_size(3, "P1") == math.inf  # not even the corners fit
+
+
+def test_absurd_sizes_give_infinite_estimates_not_errors():
+    fp = Footprint(1.0, 4.0, 4)
+    assert fp.dofs(1e-300, "P1") == math.inf and fp.dofs(1e300, "P1") == pytest.approx(8)
+    assert memory_estimate(math.inf) == math.inf
+
+
+def test_memory_model_and_its_inverse():
+    assert memory_estimate(1e6) > memory_estimate(1e5) > memory_estimate(1e4)
+    assert memory_estimate(dofs_that_fit(8e9)) == pytest.approx(8e9, rel=1e-6)
+
+
+def test_check_dofs_gives_the_estimate_and_the_size_that_fits():
+    fp = Footprint(1.0, 4.0, 4)
+    with pytest.raises(CaseError) as err:
+        check_dofs(fp.dofs(1e-6, "P1"), element="P1", what="mesh.size = 1e-06",
+                   source="c.toml", footprint=fp)
+    message = str(err.value)
+    assert "c.toml" in message and "mesh.size = 1e-06" in message and "memory" in message
+    finest = float(message.split("finest mesh size that fits is about ")[1].split()[0])
+    assert 1e-6 < finest < 1e-2
+    check_dofs(1e3, element="P1", what="x", source=None, footprint=fp)  # fits: no error
+    check_dofs(1e9, element="P1", what="x", source=None, max_dofs=10**9)  # overridden
+    with pytest.raises(CaseError, match="more than --max-dofs 100"):
+        check_dofs(200, element="P1", what="x", source=None, max_dofs=100)
+
+
+def test_prepare_refuses_before_meshing():
+    case = loads_case('[geometry]\nshape = "square"\n[mesh]\nsize = 1e-4\n', source="sq.toml")
+    start = time.perf_counter()
+    with pytest.raises(CaseError, match=r"sq\.toml.*mesh\.size.*2\.3e\+08 DOFs"):
+        prepare(case, max_dofs=10**6)
+    assert time.perf_counter() - start < 2  # 10^8 cells were never meshed
+    assert prepare(case.with_overrides({"mesh.size": 0.5}), max_dofs=100).system.n_dofs < 100
+
+
+# ------------------------------------------------------------------------ locks
+def test_a_second_writer_is_refused_and_the_lock_goes_away(tmp_path):
+    out = tmp_path / "r.h5"
+    with output_lock(out):
+        lock = tmp_path / ".r.h5.lock"
+        assert lock.read_text() == str(os.getpid())
+        with pytest.raises(CaseError, match=rf"r\.h5.*another critfric process \(pid {os.getpid()}"):
+            with output_lock(out):
+                pass
+    assert not lock.exists()
+    lock.write_text("12345")  # left by a killed writer: not locked, so not in the way
+    with output_lock(out):
+        pass
+
+
+def test_cli_refuses_an_output_being_written(tmp_path):
+    out = tmp_path / "r.h5"
+    with output_lock(out):
+        res = runner.invoke(app, ["solve", "one-triangle", "-o", str(out)])
+        assert res.exit_code == 2 and "being written by another critfric process" in res.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    assert runner.invoke(app, ["solve", "one-triangle", "-o", str(out)]).exit_code == 0
+    assert read_summary(out)["positive"] == pytest.approx([1.8])
+
+
+# ------------------------------------------------------------------------ atomic writes
+def test_an_interrupted_write_leaves_the_old_file_and_no_temporary(tmp_path):
+    out = tmp_path / "r.h5"
+    atomic_h5(out, lambda f: f.attrs.update({"version": "old"}))
+
+    def interrupted(f):
+        f["x"] = np.zeros(1000)
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        atomic_h5(out, interrupted)
+    assert [p.name for p in tmp_path.iterdir()] == ["r.h5"]
+    with h5py.File(out) as f:
+        assert f.attrs["version"] == "old" and "x" not in f
+
+
+def _cli(*args) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=str(REPO), OMP_NUM_THREADS="1")
+    return subprocess.Popen([sys.executable, "-c", "from critfric.cli import main; main()",
+                             *map(str, args)], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 60) -> None:
+    end = time.monotonic() + timeout
+    while not path.exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < end, "the solve never started"
+        time.sleep(0.01)
+
+
+def test_ctrl_c_during_a_solve_keeps_the_old_file_and_refuses_a_second_writer(tmp_path):
+    """A solve overwriting a result (--force) is interrupted half way: exit 130, the old
+    result is intact, no temporary or lock file is left; meanwhile a second writer is
+    refused."""
+    out = tmp_path / "r.h5"
+    assert runner.invoke(app, ["solve", "one-triangle", "-o", str(out)]).exit_code == 0
+    old = out.read_bytes()
+    proc = _cli("solve", "unit-square", "--size", "0.01", "--method", "arpack", "-o", out,
+                "--force")
+    try:
+        _wait_for(tmp_path / ".r.h5.lock", proc)
+        second = runner.invoke(app, ["solve", "four-triangles", "-o", str(out), "--force"])
+        assert second.exit_code == 2 and "another critfric process" in second.stderr
+        time.sleep(0.2)
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, stderr
+    assert "interrupted" in stderr and "Traceback" not in stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["r.h5"]
+    assert out.read_bytes() == old and read_summary(out)["positive"] == pytest.approx([1.8])
+
+
+def test_a_floating_piece_is_refused_for_every_element():
+    for element in ("P2", "Q2"):
+        quads = element[0] == "Q"
+        cells = "quads = [[0, 1, 2, 3], [4, 5, 6, 7]]" if quads else \
+            "triangles = [[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]]"
+        case = loads_case(f"""
+[geometry]
+shape = "mesh"
+nodes = [[0, 0], [1, 0], [1, 1], [0, 1], [0, 3], [1, 3], [1, 4], [0, 4]]
+{cells}
+[geometry.edges]
+bottom = [[0, 1]]
+top = [[6, 7]]
+[mesh]
+element = "{element}"
+""", source="two.toml")
+        with pytest.raises(CaseError, match=r"two\.toml.*boundary\.dirichlet.*1 of the 2 "
+                                            r"connected pieces"):
+            solve_case(case)
