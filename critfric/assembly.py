@@ -79,14 +79,21 @@ def assemble_elasticity(mesh: Mesh) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     shape = (n_dofs, n_dofs)
     # K_lam[(a,k),(b,l)] = int d_k N_a d_l N_b; index 2a+k of g is d_k N_a
     g = grads.reshape(n_cells, -1, 2 * nl)
-    local = np.matmul(g.transpose(0, 2, 1) * wdet[:, None, :], g)
-    K_lam = sp.coo_matrix((local.ravel(), (rows, cols)), shape=shape).tocsr()
-    # K_G[(a,k),(b,l)] = int (delta_kl grad N_a . grad N_b + d_l N_a d_k N_b)
-    local = np.ascontiguousarray(local.reshape(n_cells, nl, 2, nl, 2).transpose(0, 1, 4, 3, 2))
+    lam = np.matmul(g.transpose(0, 2, 1) * wdet[:, None, :], g)
     lap = np.einsum("cq,cqai,cqbi->cab", wdet, grads, grads, optimize=True)
-    local[:, :, 0, :, 0] += lap
-    local[:, :, 1, :, 1] += lap
-    K_G = sp.coo_matrix((local.ravel(), (rows, cols)), shape=shape).tocsr()
+    del g, grads
+    # K_G[(a,k),(b,l)] = int (delta_kl grad N_a . grad N_b + d_l N_a d_k N_b)
+    # Both parts share one sparsity pattern: one COO scatter of K_lam + i K_G, then split.
+    local = np.empty((n_cells, nl, 2, nl, 2), dtype=np.complex128)
+    local.real = lam.reshape(local.shape)
+    local.imag = lam.reshape(local.shape).transpose(0, 1, 4, 3, 2)
+    del lam
+    local.imag[:, :, 0, :, 0] += lap
+    local.imag[:, :, 1, :, 1] += lap
+    K = sp.coo_matrix((local.ravel(), (rows, cols)), shape=shape).tocsr()
+    del local, rows, cols
+    K_lam = sp.csr_matrix((K.data.real.copy(), K.indices.copy(), K.indptr.copy()), shape=shape)
+    K_G = sp.csr_matrix((K.data.imag.copy(), K.indices, K.indptr), shape=shape)
     return K_lam, K_G
 
 

@@ -87,6 +87,12 @@ def _string(value):
     return value
 
 
+def _path(value):
+    if not isinstance(value, str) or not value.strip() or "\x00" in value:
+        raise _Bad("a file path (a non-empty string without NUL characters)")
+    return value
+
+
 def _names(value):
     if isinstance(value, str):
         value = [value]
@@ -259,7 +265,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "triangles": Key(_index_rows((3,)), None, "mesh: triangles [[a, b, c], ...]"),
         "quads": Key(_index_rows((4,)), None, "mesh: quadrilaterals [[a, b, c, d], ...]"),
         "edges": Key(_edge_table, REQUIRED, "mesh: named boundary edges {name = [[a, b], ...]}"),
-        "file": Key(_string, REQUIRED, "file: a gmsh .msh mesh or .geo script, relative to the "
+        "file": Key(_path, REQUIRED, "file: a gmsh .msh mesh or .geo script, relative to the "
                     "case file; boundary edges are its named physical curves"),
         "domain": Key(_names, None, "file: physical surface(s) of the body [every surface]"),
     },
@@ -309,7 +315,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
                      "contact nodes at arc length s in [s0, s1] along t (later rules win)"),
     },
     "output": {
-        "file": Key(_string, None, "HDF5 result file (default: <case name>.h5)"),
+        "file": Key(_path, None, "HDF5 result file (default: <case name>.h5)"),
         "modes": Key(_boolean, True, "store the eigenfunctions of the critical eigenvalues"),
     },
 }

@@ -96,6 +96,9 @@ def solve(
                 _err(f"wrote {png}")
     except CritfricError as exc:
         _fail(exc)
+    except KeyboardInterrupt:  # typer would exit 130 silently
+        _err("critfric: interrupted: no result written (an existing file is unchanged)")
+        raise typer.Exit(130) from None
     for note in result.notes:
         _err(f"critfric: note: {note}")
     for warning in result.warnings:
@@ -217,6 +220,65 @@ def export(
     except CritfricError as exc:
         _fail(exc)
     typer.echo(str(path))
+
+
+@app.command()
+def solutions(
+    case: str = typer.Argument(..., help="Case file or shipped case name; its [load] is used."),
+    friction: str = typer.Option(..., "--friction", help="Friction values: a:b:N (N values "
+                                 "from a to b) or one value."),
+    nu: Optional[float] = typer.Option(None, help="Poisson ratio, overrides [material] nu."),
+    as_json: bool = typer.Option(False, "--json", help="Print only a JSON list on stdout."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of the bifurcation diagram "
+                                        "[default: <case name>_solutions.png]."),
+    no_plot: bool = typer.Option(False, "--no-plot", help="Write no PNG."),
+) -> None:
+    """Every solution of the static Coulomb problem (2.8) of a small case (p <= 8 contact
+    nodes), by enumeration, over a range of friction values."""
+    from .enumerate import parse_frictions, report, solutions_of_case
+    from .staticplots import default_plot, solutions_plot
+
+    try:
+        loaded = load_case(case, overrides={"material.nu": nu})
+        sweep = solutions_of_case(loaded, parse_frictions(friction))
+        png = None if no_plot else solutions_plot(
+            sweep, plot or default_plot(loaded, "solutions"), title=loaded.title or "")
+    except CritfricError as exc:
+        _fail(exc)
+    typer.echo(json.dumps([e.to_json() for e in sweep]) if as_json else report(sweep))
+    if png:
+        _err(f"wrote {png}")
+
+
+@app.command()
+def verify(
+    case: str = typer.Argument(..., help="Case file or shipped case name."),
+    nu: Optional[float] = typer.Option(None, help="Poisson ratio, overrides [material] nu."),
+    element: Optional[str] = typer.Option(None, help="Element: " + ", ".join(ELEMENTS) + "."),
+    size: Optional[float] = typer.Option(None, help="Target mesh size h."),
+    off: float = typer.Option(0.01, help="Counter-check at friction * (1 -/+ off)."),
+    as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of the branch "
+                                        "[default: <case name>_verify.png]."),
+    no_plot: bool = typer.Option(False, "--no-plot", help="Write no PNG."),
+) -> None:
+    """Check the explicit non-uniqueness example of section 5 at the critical coefficient:
+    a whole branch u + delta Phi of solutions. Exit code 1 if the check fails."""
+    from .staticplots import branch_plot, default_plot
+    from .verify import report, verify as run_verify
+
+    given = {"nu": nu, "element": element, "size": size}
+    try:
+        loaded = load_case(case, overrides={OVERRIDES[k]: v for k, v in given.items()})
+        result = run_verify(loaded, off=off)
+        png = None if no_plot else branch_plot(result, plot or default_plot(loaded, "verify"))
+    except CritfricError as exc:
+        _fail(exc)
+    typer.echo(json.dumps(result.summary()) if as_json else report(result))
+    if png:
+        _err(f"wrote {png}")
+    if not result.passed:
+        raise typer.Exit(1)
 
 
 def version_callback(value: bool) -> None:

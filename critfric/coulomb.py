@@ -88,10 +88,8 @@ def _contact_last(K: sp.csc_matrix, cdofs: np.ndarray, system: ContactSystem) ->
     # (a quarter of K's entries): only its minimum-degree order is used
     graph = (sp.diags(np.asarray(graph.sum(axis=1)).ravel() + 1.0) - graph).tocsc()
     perm = spla.splu(graph, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                     options={"SymmetricMode": True}).perm_c
-    rank = np.empty_like(perm)
-    rank[perm] = np.arange(len(perm))
-    dof_rank = rank[node] * 2 + (system.free % 2)
+                     options={"SymmetricMode": True}).perm_c  # perm[i]: position of node i
+    dof_rank = perm[node] * 2 + (system.free % 2)
     order = np.argsort(dof_rank, kind="stable")
     is_contact = np.zeros(m, dtype=bool)
     is_contact[cdofs] = True

@@ -46,6 +46,7 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from threadpoolctl import threadpool_limits
 
 from .contact import FREE, SLIP, STUCK, ContactSystem
 from .errors import SolverError
@@ -229,13 +230,16 @@ def schur_spectrum(prob: _Problem, S: np.ndarray, extend, *, count: int,
     freen = np.flatnonzero(prob.state.status == FREE)
     u = np.concatenate([p + prob.slip, freen, p + freen])
     p0 = len(prob.slip)
-    try:  # W = S_uu^-1 E (E: slipping tangential columns, the first p0 of u)
-        W = la.cho_solve(la.cho_factor(S[np.ix_(u, u)]), np.eye(len(u), p0))
-    except la.LinAlgError:
-        raise SolverError("the Schur complement onto the contact DOFs is not positive "
-                          "definite: check that the Dirichlet edges hold the body") from None
-    T = prob.gamma[:, None] * (S[np.ix_(prob.slip, u)] @ W)
-    beta, vecs = la.eig(T)
+    # one BLAS thread: these matrices are small, and on a busy 2-core machine two threads
+    # made a 335 x 335 eig 5-30x slower (measured), more so right after PARDISO's threads ran
+    with threadpool_limits(1, user_api="blas"):
+        try:  # W = S_uu^-1 E (E: slipping tangential columns, the first p0 of u)
+            W = la.cho_solve(la.cho_factor(S[np.ix_(u, u)]), np.eye(len(u), p0))
+        except la.LinAlgError:
+            raise SolverError("the Schur complement onto the contact DOFs is not positive "
+                              "definite: check that the Dirichlet edges hold the body") from None
+        T = prob.gamma[:, None] * (S[np.ix_(prob.slip, u)] @ W)
+        beta, vecs = la.eig(T)
     alpha, real, index, n_inf = _classify(beta, real_tol)
 
     def phi_of(j):

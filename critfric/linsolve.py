@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import importlib.metadata
+import importlib.util
 import weakref
 
 import numpy as np
@@ -78,12 +80,19 @@ class ScipyFactor:
 # ------------------------------------------------------------------------------- PARDISO
 @functools.cache
 def _pardiso_library():
-    """MKL's ``pardiso`` entry point, found the way pypardiso finds mkl_rt (None if absent)."""
-    try:
-        import pypardiso
-        lib = pypardiso.PyPardisoSolver().libmkl
-    except (ImportError, OSError, AttributeError):
+    """MKL's ``pardiso`` entry point (None if absent): mkl_rt from the ``mkl`` wheel's file
+    list (fast), else found the way pypardiso finds it (importing it searches directories)."""
+    if importlib.util.find_spec("pypardiso") is None:
         return None
+    try:
+        rt = [f for f in importlib.metadata.files("mkl") or [] if "libmkl_rt" in f.name]
+        lib = ctypes.CDLL(str(rt[0].locate()))
+    except (importlib.metadata.PackageNotFoundError, IndexError, OSError):
+        try:
+            import pypardiso
+            lib = pypardiso.PyPardisoSolver().libmkl
+        except (ImportError, OSError, AttributeError):
+            return None
     p, i32 = ctypes.c_void_p, ctypes.POINTER(ctypes.c_int32)
     fn = lib.pardiso
     fn.argtypes = [p, i32, i32, i32, i32, i32, p, i32, i32, i32, i32, i32, i32, p, p, i32]
@@ -112,6 +121,8 @@ class PardisoFactor:
     def __init__(self, A: sp.spmatrix, *, symmetric: bool, schur_index=None):
         fn, init = _pardiso_library()
         self._fn, n = fn, A.shape[0]
+        if symmetric and not np.all(A.diagonal() > 0):
+            raise SolverError(f"the matrix has a non-positive diagonal entry: {_SINGULAR}")
         A = sp.triu(A, format="csr") if symmetric else sp.csr_matrix(A)
         A.sort_indices()
         if A.nnz >= 2**31:

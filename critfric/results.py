@@ -5,10 +5,10 @@ Layout (``schema_version`` 1)::
     /                   attrs: kind="solve", critfric_version, schema_version, case_name,
                         case_source, case_toml (the effective case, re-runnable), case_text
                         (the file as given), nu, E, element, size, h, n_dofs, n_contact,
-                        method (asked), solver (used), shift, count, gamma, tol, real_tol,
-                        infinite_tol, residual_tol, applications, n_infinite, seconds,
-                        timings (JSON), warnings (JSON), notes (JSON), normal,
-                        tangent
+                        method (asked), solver (used), backend (linear solver), shift,
+                        count, gamma, tol, real_tol, infinite_tol, residual_tol, applications,
+                        n_infinite, seconds, timings (JSON), warnings (JSON), notes (JSON),
+                        normal, tangent
     /eigen/alpha        complex, every finite eigenvalue computed, sorted by modulus
     /critical/positive  real eigenvalues > 0, sorted
     /critical/negative  real eigenvalues < 0, sorted by |alpha|
@@ -43,6 +43,14 @@ def default_output(case) -> Path:
 def check_output(path: Path, *, force: bool = False) -> Path:
     """Refuse an output path that cannot be written, before any work is done."""
     path = Path(path)
+    try:
+        os.stat(path)
+    except FileNotFoundError:
+        pass
+    except (OSError, ValueError) as exc:  # name too long, a file used as a directory, NUL
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise CaseError(f"cannot write this path ({why}); allowed: a file path in an existing "
+                        "writable directory", file=str(path), key="output.file") from None
     if path.is_dir():
         raise CaseError("is a directory; allowed: a file path for the HDF5 result",
                         file=str(path), key="output.file")
@@ -62,12 +70,21 @@ def check_output(path: Path, *, force: bool = False) -> Path:
 def atomic_h5(path: Path, fill) -> Path:
     """Write an HDF5 file through a temporary file in the same directory, then rename."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name[:200]}.", suffix=".tmp",
+                                   dir=path.parent or ".")
+    except OSError as exc:
+        raise CaseError(f"cannot write in this directory ({exc.strerror})", file=str(path),
+                        key="output.file") from None
     os.close(fd)
     try:
         with h5py.File(tmp, "w") as f:
             fill(f)
         os.replace(tmp, path)
+    except OSError as exc:  # disk full, quota, file system gone: nothing partial is left
+        Path(tmp).unlink(missing_ok=True)
+        raise CaseError(f"cannot write the result file ({exc})", file=str(path),
+                        key="output.file") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -87,7 +104,7 @@ def write_result(result, path: Path | str, *, force: bool = False) -> Path:
             "case_text": case.text, "nu": result.nu, "E": result.E, "element": result.element,
             "size": np.nan if result.size is None else result.size, "h": result.h,
             "n_dofs": result.n_dofs, "n_contact": result.n_contact, "method": s["method"],
-            "solver": result.solver, "shift": s["shift"], "count": s["count"],
+            "solver": result.solver, "backend": result.backend, "shift": s["shift"], "count": s["count"],
             "gamma": s["gamma"], "tol": s["tol"], "real_tol": s["real_tol"],
             "infinite_tol": INFINITE_TOL, "residual_tol": RESIDUAL_TOL,
             "applications": result.applications, "n_infinite": result.n_infinite,
@@ -138,6 +155,7 @@ def read_summary(path: Path | str) -> dict:
                 "n_dofs": int(a["n_dofs"]), "n_contact": int(a["n_contact"]),
                 "element": str(a["element"]), "nu": float(a["nu"]), "h": float(a["h"]),
                 "size": None if np.isnan(size) else size, "method": str(a["solver"]),
+                "backend": str(a.get("backend", "scipy")),
                 "seconds": float(a["seconds"]), "warnings": json.loads(a["warnings"]),
             }
     except (OSError, KeyError) as exc:

@@ -23,6 +23,7 @@ from .geometry import parallelogram, polygon, rectangle, validate
 from .gmshfile import file_mesh
 from .guards import check_dofs, check_held, polygon_footprint
 from .mesh import Mesh, build_mesh, inline_mesh
+from .static import contact_state
 
 
 @dataclass
@@ -59,6 +60,7 @@ class Result:
     timings: dict[str, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    backend: str = "scipy"  # sparse linear solver used (critfric.linsolve)
 
     @property
     def n_contact(self) -> int:
@@ -87,6 +89,7 @@ class Result:
             "h": self.h,
             "size": self.size,
             "method": self.solver,
+            "backend": self.backend,
             "seconds": round(self.seconds, 4),
             "warnings": list(self.warnings),
         }
@@ -164,9 +167,11 @@ def solve_prepared(prep: Prepared, case: Case) -> Result:
     lam, G = lame(E, nu)
     s = case.solve
     system = prep.system
-    spec = eigen.solve(system.stiffness(lam, G), system, method=s["method"], count=s["count"],
+    state = contact_state(case, system, prepared=prep)  # None: all slipping ([contact])
+    spec = eigen.solve(system.stiffness(lam, G), system, state, method=s["method"],
+                       count=s["count"],
                        shift=s["shift"], tol=s["tol"], maxiter=s["maxiter"],
-                       real_tol=s["real_tol"], gamma=s["gamma"])
+                       real_tol=s["real_tol"], gamma=s["gamma"], backend=s["backend"])
     modes = [
         {
             "alpha": m.alpha,
@@ -186,7 +191,7 @@ def solve_prepared(prep: Prepared, case: Case) -> Result:
         size=case.mesh["size"], h=mesh_diameter(prep.mesh), solver=spec.method,
         applications=spec.applications, n_infinite=spec.n_infinite,
         seconds=sum(timings.values()), timings=timings, warnings=spec.warnings,
-        notes=spec.notes,
+        notes=spec.notes, backend=spec.backend,
     )
 
 

@@ -15,6 +15,7 @@ does not stall the sweep).
 
 from __future__ import annotations
 
+import math
 import multiprocessing as mp
 import os
 import signal
@@ -23,12 +24,15 @@ from contextlib import contextmanager
 from multiprocessing.connection import wait
 from typing import Callable, Iterator
 
+import numpy as np
+
 from .errors import CaseError, SolverError
 
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                "BLIS_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
 _ORDER = {"P1": 1, "Q1": 1, "P2": 2, "Q2": 2}
 READY = "ready"  # a worker's first message
+CONNECT_TIMEOUT = "10s"  # to reach a Dask scheduler
 
 
 # ------------------------------------------------------------------------------ scheduling
@@ -37,24 +41,18 @@ def _cost(point) -> float:
 
 
 def make_chunks(points: list, jobs: int) -> list[list]:
-    """Points grouped by (size, element), split while a piece exceeds 1/jobs of the total
-    cost, largest first."""
+    """Points grouped by (size, element); a group costing more than 1/jobs of the total is
+    cut into that many nearly equal pieces. Largest first."""
     groups: dict[tuple, list] = {}
     for p in points:
         groups.setdefault(p.group, []).append(p)
-    chunks = list(groups.values())
-    total = sum(_cost(p) for p in points)
-
-    def cost(c):
-        return sum(_cost(p) for p in c)
-
-    while True:
-        chunks.sort(key=cost, reverse=True)
-        big = chunks[0]
-        if len(big) < 2 or (cost(big) <= total / jobs and len(chunks) >= min(jobs, len(points))):
-            return chunks
-        half = (len(big) + 1) // 2
-        chunks[0:1] = [big[:half], big[half:]]
+    share = sum(_cost(p) for p in points) / max(jobs, 1)
+    chunks = []
+    for group in groups.values():
+        k = min(len(group), max(1, math.ceil(sum(_cost(p) for p in group) / share - 1e-9)))
+        cuts = np.cumsum([0] + [len(group) // k + (i < len(group) % k) for i in range(k)])
+        chunks += [group[a:b] for a, b in zip(cuts[:-1], cuts[1:])]
+    return sorted(chunks, key=lambda c: sum(_cost(p) for p in c), reverse=True)
 
 
 # ------------------------------------------------------------------------------ local pool
@@ -164,20 +162,26 @@ def _assign(w: _Worker, queue: deque) -> None:
 
 
 # ------------------------------------------------------------------------------ Dask
-def run_dask(address: str, fn: Callable, spec: dict, points: list) -> Iterator[tuple]:
-    """Run ``fn(spec, point)`` on the Dask scheduler at ``address``; yield (point, row)."""
+def connect_dask(address: str):
+    """A ``distributed.Client`` of the scheduler at ``address`` (bad address: CaseError)."""
     try:
-        from distributed import Client, as_completed
+        from distributed import Client
     except ImportError:
         raise CaseError("needs dask.distributed: pip install 'critfric[dask]'",
                         key="--scheduler") from None
-    from .sweep import empty_row
-
     try:
-        client = Client(address, timeout="10s")
+        return Client(address, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError) as exc:
         raise CaseError(f"cannot connect to the Dask scheduler at {address!r}: {exc}",
                         key="--scheduler") from None
+
+
+def run_dask(client, fn: Callable, spec: dict, points: list) -> Iterator[tuple]:
+    """Run ``fn(spec, point)`` on the cluster of ``client``; yield (point, row)."""
+    from distributed import as_completed
+
+    from .sweep import empty_row
+
     futures = {}
     try:
         client.wait_for_workers(1, timeout=60)
@@ -200,4 +204,3 @@ def run_dask(address: str, fn: Callable, spec: dict, points: list) -> Iterator[t
     finally:
         if futures:
             client.cancel(list(futures))
-        client.close()

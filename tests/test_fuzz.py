@@ -53,7 +53,7 @@ SECTIONS = list(SCHEMA) + ["title", "extra"]
 KEYS = [(s, k) for s, keys in SCHEMA.items() for k in keys]
 WORDS = ["P1", "P2", "Q1", "Q2", "square", "rectangle", "polygon", "mesh", "file", "bottom",
          "top", "left", "right", "e0", "e4", "auto", "dense", "arpack", "body.geo", "body.msh",
-         "nope.geo", ""]
+         "nope.geo", "", "a\x00b.h5", "x" * 300, "/proc/x.h5"]
 
 scalars = st.one_of(
     st.integers(min_value=-3, max_value=12), st.integers(min_value=-2**63, max_value=2**63 - 1),
@@ -157,7 +157,8 @@ OPTIONS = {
     "--count": st.sampled_from(["1", "2", "3", "0", "-1", "1001", "1.5"]),
     "--shift": st.floats(allow_nan=True, allow_infinity=True).map(repr),
     "--method": st.sampled_from(["auto", "dense", "arpack", "lanczos"]),
-    "-o": st.sampled_from(["out.h5", "sub/out.h5", ".", "", "case.toml/x.h5"]),
+    "-o": st.sampled_from(["out.h5", "sub/out.h5", ".", "", "case.toml/x.h5", "x" * 300,
+                           "/proc/x.h5", " "]),
     "--force": st.none(), "--json": st.none(), "--trust-geo": st.none(),
     "--bogus": st.none(),
 }
