@@ -168,7 +168,8 @@ class Enumerator:
                 rows.append(I[i] / self.F)
                 rhs.append(0.0)
             if s == STUCK:
-                rows += [(I[p + i] + friction * I[i]) / self.F, (-I[p + i] + friction * I[i]) / self.F]
+                rows += [(I[p + i] + friction * I[i]) / self.F,
+                         (-I[p + i] + friction * I[i]) / self.F]
                 rhs += [0.0, 0.0]
             elif s in (SLIP_PLUS, SLIP_MINUS):
                 g = 1.0 if s == SLIP_PLUS else -1.0
@@ -220,7 +221,8 @@ class Enumerator:
             ok = np.all(np.stack(list(bad.values())) <= FEASIBLE_TOL, axis=0)
             isolated += list(z[regular][ok])
             for i, N in nullspaces.items():  # singular: a continuum if solvable and feasible
-                if np.abs(A[i] @ z[i] - b[i]).max() > FEASIBLE_TOL * max(self.F, np.abs(b[i]).max()):
+                scale = max(self.F, np.abs(b[i]).max())
+                if np.abs(A[i] @ z[i] - b[i]).max() > FEASIBLE_TOL * scale:
                     continue
                 found = self._continuum(codes[i], z[i], N, friction)
                 if isinstance(found, Branch):
@@ -262,9 +264,10 @@ class Enumerator:
                       [self._direction(N[:, j]) for j in range(d)], ends, code, friction)
 
     def _direction(self, n: np.ndarray) -> Point:
+        """A null direction n of the forces with its displacements, the largest U_t > 0."""
         du, p = self.C @ n, self.p
-        big = np.argmax(np.abs(du[p:])) + p if np.any(du[p:]) else np.argmax(np.abs(n))
-        sign = np.sign(du[big] if big >= p and np.any(du[p:]) else n[big]) or 1.0
+        ref = du[p:] if np.any(du[p:]) else n
+        sign = np.sign(ref[np.argmax(np.abs(ref))]) or 1.0
         du, n = sign * du, sign * n
         return Point(du[:p], du[p:], n[:p], n[p:], [])
 

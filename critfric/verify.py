@@ -36,7 +36,7 @@ from .assembly import lame
 from .case import Case, load_case
 from .coulomb import Complementarity, Condensed, solve as coulomb_solve, violations
 from .eigen import ContactState
-from .errors import SolverError
+from .errors import CaseError, SolverError
 from .static import StaticProblem, boundary_facets, build, facet_load, facets_in
 
 PASS_TOL = 1e-10
@@ -246,6 +246,9 @@ def verify(case: Case | str | Path, *, off: float = 0.01, deltas=None,
     """The critical branch, and the counter-checks at friction (1 - off) and (1 + off)."""
     from .solve import prepare
 
+    if not 0 < off < 1:
+        raise CaseError(f"got {off!r}; allowed: a relative offset in (0, 1), such as 0.01",
+                        key="--off")
     case = case if isinstance(case, Case) else load_case(case)
     prep = prepared or prepare(case)
     crit = branch(case, deltas=deltas, prepared=prep)
@@ -273,7 +276,8 @@ def report(v: Verification) -> str:
                  f"delta0: {'solutions' if b.passed else 'NOT solutions'}; beyond delta0: "
                  f"{'stops' if b.stops else 'does NOT stop'} being a solution")
     for o in v.off_critical:
+        verdict = "still solutions (unexpected)" if o.passed else "not solutions (expected)"
         lines.append(f"off critical, friction {o.friction:.10g}: max residual "
-                     f"{o.max_residual:.2e}: {'still solutions (unexpected)' if o.passed else 'not solutions (expected)'}")
+                     f"{o.max_residual:.2e}: {verdict}")
     lines.append("verification " + ("PASSED" if v.passed else "FAILED"))
     return "\n".join(lines)

@@ -148,8 +148,9 @@ CATALOGUE = [
     case("polygon on one line", POLYGON.format(vertices="[[0,0],[1,0],[2,0]]"),
          "geometry.vertices", "one line"),
     case("edge_names count mismatch",
-         POLYGON.format(vertices="[[0,0],[1,0],[1,1],[0,1]]") .replace(
-             "[boundary]", 'edge_names = ["a", "b"]\n[boundary]'), "geometry.edge_names", "one name"),
+         POLYGON.format(vertices="[[0,0],[1,0],[1,1],[0,1]]").replace(
+             "[boundary]", 'edge_names = ["a", "b"]\n[boundary]'),
+         "geometry.edge_names", "one name"),
     case("structured 5-vertex polygon",
          POLYGON.format(vertices="[[0,0],[1,0],[1,1],[0.5,1.5],[0,1]]") + "structured = true\n",
          "mesh.structured", "4-vertex"),
@@ -214,7 +215,7 @@ CATALOGUE = [
     option("--max-dofs 0", "--max-dofs", "0", words=("--max-dofs",)),
     option("--max-dofs too small", "--max-dofs", "10", words=("DOFs", "--max-dofs 10",
                                                                "finest mesh size")),
-    option("output is a directory", "-o", "out", words=("out", "is a directory")) ,
+    option("output is a directory", "-o", "out", words=("out", "is a directory")),
     option("output directory missing", "-o", "nowhere/r.h5", words=("nowhere", "does not exist")),
     option("output under a regular file", "-o", "case.toml/r.h5",
            words=("case.toml/r.h5", "Not a directory")),
@@ -225,11 +226,36 @@ CATALOGUE = [
     Bad("existing output without --force", {"case.toml": SQUARE, "old.h5": "keep"},
         ("solve", "case.toml", "-o", "old.h5"), 2, ("old.h5", "--force")),
     Bad("table of a missing file", {}, ("table", "none.h5"), 2, ("none.h5", "cannot read")),
-    Bad("table of a text file", {"r.h5": "not hdf5"}, ("table", "r.h5"), 2, ("r.h5", "cannot read")),
+    Bad("table of a text file", {"r.h5": "not hdf5"}, ("table", "r.h5"), 2,
+        ("r.h5", "cannot read")),
     Bad("table of a truncated result", {"r.h5": "@truncated"}, ("table", "r.h5"), 2,
         ("r.h5", "cannot read")),
     Bad("table of a foreign HDF5 file", {"r.h5": "@foreign"}, ("table", "r.h5"), 2,
         ("r.h5", "not a critfric")),
+    # --- sweeps, plots and exports
+    Bad("sweep nu outside [0, 0.5)", {}, ("sweep", "--nu", "0.7"), 2, ("--nu", "0.7", "0.5")),
+    Bad("sweep nu range past 0.5", {}, ("sweep", "--nu", "0.6:0.8"), 2, ("--nu", "0.6:0.8")),
+    Bad("sweep nu range not numbers", {}, ("sweep", "--nu", "a:b"), 2, ("--nu", "'a'")),
+    Bad("sweep nu range of one point", {}, ("sweep", "--nu", "0.1:0.3:1"), 2, ("--nu", ">= 2")),
+    Bad("sweep negative size", {}, ("sweep", "--size", "0.1,-1"), 2, ("--size", "positive")),
+    Bad("sweep size not a number", {}, ("sweep", "--size", "x"), 2, ("--size", "'x'")),
+    Bad("sweep unknown element", {}, ("sweep", "--element", "P1,P7"), 2, ("--element", "P7")),
+    Bad("sweep --jobs 0", {}, ("sweep", "--jobs", "0"), 2, ("--jobs",)),
+    Bad("sweep output is a directory", {"out/x": "x"}, ("sweep", "--nu", "0.1", "-o", "out"),
+        2, ("out", "directory")),
+    Bad("sweep output is a solve file", {"r.h5": "@truncated"},
+        ("sweep", "--nu", "0.1", "-o", "r.h5"), 2, ("r.h5", "--force")),
+    Bad("plot of a truncated result", {"r.h5": "@truncated"}, ("plot", "r.h5"), 2,
+        ("r.h5", "cannot read")),
+    Bad("plot of a foreign HDF5 file", {"r.h5": "@foreign"}, ("plot", "r.h5"), 2,
+        ("r.h5", "critfric")),
+    Bad("plot of a text file", {"r.h5": "not hdf5"}, ("plot", "r.h5"), 2, ("r.h5", "cannot read")),
+    Bad("export of a truncated result", {"r.h5": "@truncated"}, ("export", "r.h5"), 2,
+        ("r.h5", "cannot read")),
+    Bad("export of a foreign HDF5 file", {"r.h5": "@foreign"}, ("export", "r.h5"), 2,
+        ("r.h5", "not a critfric")),
+    Bad("export to an unknown format", {"r.h5": "@foreign"}, ("export", "r.h5", "--format",
+                                                              "stl"), 2, ("--format", "stl")),
 ]
 
 
@@ -260,7 +286,7 @@ def test_bad_input(tmp_path, monkeypatch, bad):
     for name, content in bad.files.items():
         _write(tmp_path, name, content)
     if "out" in bad.args:
-        (tmp_path / "out").mkdir()
+        (tmp_path / "out").mkdir(exist_ok=True)
     before = _listing(tmp_path)
     res = runner.invoke(app, list(bad.args))
     assert res.exit_code == bad.code, (res.exit_code, res.output)

@@ -11,7 +11,6 @@ from critfric.assembly import lame
 from critfric.case import loads_case
 from critfric.enumerate import Enumerator, enumerate_solutions, parse_frictions
 from critfric.errors import CaseError, SolverError
-from critfric.solve import prepare
 
 from helpers import CASES, one_triangle_alpha, square_case
 

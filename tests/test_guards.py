@@ -19,7 +19,7 @@ from critfric import prepare, read_summary, solve_case
 from critfric.case import loads_case
 from critfric.cli import app
 from critfric.errors import CaseError
-from critfric.geometry import polygon, rectangle
+from critfric.geometry import polygon
 from critfric.guards import (Footprint, check_dofs, dofs_that_fit, memory_estimate,
                              output_lock, polygon_footprint)
 from critfric.mesh import build_mesh
@@ -79,7 +79,7 @@ def test_check_dofs_gives_the_estimate_and_the_size_that_fits():
 def test_prepare_refuses_before_meshing():
     case = loads_case('[geometry]\nshape = "square"\n[mesh]\nsize = 1e-4\n', source="sq.toml")
     start = time.perf_counter()
-    with pytest.raises(CaseError, match=r"sq\.toml.*mesh\.size.*2\.31e\+08 DOFs.*more than --max-dofs"):
+    with pytest.raises(CaseError, match=r"sq\.toml.*mesh\.size.*2\.31e\+08 DOFs.*--max-dofs"):
         prepare(case, max_dofs=10**6)
     assert time.perf_counter() - start < 2  # 10^8 cells were never meshed
     assert prepare(case.with_overrides({"mesh.size": 0.5}), max_dofs=100).system.n_dofs < 100
@@ -91,7 +91,8 @@ def test_a_second_writer_is_refused_and_the_lock_goes_away(tmp_path):
     with output_lock(out):
         lock = tmp_path / ".r.h5.lock"
         assert lock.read_text() == str(os.getpid())
-        with pytest.raises(CaseError, match=rf"r\.h5.*another critfric process \(pid {os.getpid()}"):
+        with pytest.raises(CaseError, match=rf"r\.h5.*another critfric process \(pid "
+                                            rf"{os.getpid()}"):
             with output_lock(out):
                 pass
     assert not lock.exists()

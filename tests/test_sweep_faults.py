@@ -6,17 +6,24 @@ from __future__ import annotations
 import os
 import random
 import signal
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
-import pytest
+from typer.testing import CliRunner
 
 import critfric
+from critfric.cli import app
 from critfric.errors import CaseError
+from critfric.guards import output_lock
 from critfric.sweep import Point, empty_row, make_grid, run_sweep
 from critfric.sweepfile import append_point, open_sweep, read_sweep
 
-from helpers import CASES
+from helpers import CASES, square_case
+
+REPO = Path(__file__).resolve().parent.parent
 
 
 def _row(i: int) -> dict:
@@ -55,3 +62,76 @@ def test_a_sweep_file_killed_while_writing_a_point_stays_readable_and_appendable
         assert len(again) == len(rows) + 1 and again[-1]["positive"] == [1.0 + 10**6]
         for leftover in tmp_path.glob(f".s{k}.h5.*"):  # a temporary file may remain: harmless
             leftover.unlink()
+
+
+SWEEP = ["sweep", "unit-square", "--nu", "0.02:0.46:12", "--size", "0.025", "--element", "P1",
+         "--jobs", "2"]
+
+
+def _cli(*args) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    return subprocess.Popen([sys.executable, "-m", "critfric", *map(str, args)], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def _rows(path):
+    try:
+        return read_sweep(path)["rows"]
+    except (CaseError, OSError):  # not created yet, or being written
+        return []
+
+
+def test_ctrl_c_with_worker_processes_keeps_every_point_and_resumes_exactly_once(tmp_path):
+    out = tmp_path / "s.h5"
+    proc = _cli(*SWEEP, "-o", out)
+    try:
+        end = time.monotonic() + 120
+        while len(_rows(out)) < 2:
+            assert proc.poll() is None, proc.communicate()[1]
+            assert time.monotonic() < end, "no point was finished"
+            time.sleep(0.02)
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "interrupted" in stderr
+    kept = read_sweep(out)["rows"]
+    assert 2 <= len(kept) < 12 and all(r["status"] == "ok" for r in kept)
+    assert [p.name for p in tmp_path.iterdir()] == ["s.h5"]  # no lock, no temporary file
+    case = critfric.load_case("unit-square")
+    grid = make_grid(case, nu="0.02:0.46:12", size="0.025", element="P1")
+    resumed = run_sweep(case, grid, output=out, jobs=1)
+    assert resumed.computed == 12 - len(kept)
+    keys = [(r["element"], r["size"], r["nu"]) for r in read_sweep(out)["rows"]]
+    assert len(keys) == len(set(keys)) == 12
+    assert sorted(k[2] for k in keys) == grid.nu
+
+
+def test_a_second_sweep_on_the_same_file_is_refused(tmp_path):
+    out = tmp_path / "s.h5"
+    with output_lock(out):
+        res = CliRunner().invoke(app, ["sweep", str(CASES / "four_triangles.toml"), "-j", "1",
+                                       "--nu", "0.1,0.2", "-o", str(out)])
+        assert res.exit_code == 2 and "another critfric process" in res.stderr
+        assert not out.exists()
+    res = CliRunner().invoke(app, ["sweep", str(CASES / "four_triangles.toml"), "-j", "1",
+                                   "--nu", "0.1,0.2", "-o", str(out)])
+    assert res.exit_code == 0 and len(read_sweep(out)["rows"]) == 2
+
+
+def test_same_values_with_any_number_of_jobs(tmp_path):
+    case = critfric.loads_case(square_case(size=0.25))
+    grid = make_grid(case, nu="0.1,0.3,0.45", size="0.25,0.125", element="P1,Q2")
+    runs = [run_sweep(case, grid, output=tmp_path / f"j{jobs}.h5", jobs=jobs).rows
+            for jobs in (1, 3)]
+    for a, b in zip(*runs):
+        assert (a["nu"], a["size"], a["element"], a["n_dofs"]) == \
+            (b["nu"], b["size"], b["element"], b["n_dofs"])
+        np.testing.assert_allclose(a["positive"], b["positive"], rtol=1e-12, atol=0)
+        np.testing.assert_allclose(a["negative"], b["negative"], rtol=1e-12, atol=0)
+    point = runs[0][4]  # and the same as a single solve of that point
+    single = critfric.solve_case(case, overrides={"material.nu": point["nu"],
+                                                  "mesh.size": point["size"],
+                                                  "mesh.element": point["element"]})
+    np.testing.assert_allclose(point["positive"], single.positive[:1], rtol=1e-12, atol=0)

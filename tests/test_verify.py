@@ -13,7 +13,7 @@ from critfric import verify
 from critfric.case import loads_case
 from critfric.cli import app
 
-from helpers import CASES, four_triangles_alpha, one_triangle_alpha, square_case
+from helpers import CASES, four_triangles_alpha, one_triangle_alpha
 
 runner = CliRunner()
 
@@ -65,46 +65,72 @@ def test_critical_values_are_the_papers():
     assert b.friction == pytest.approx(one_triangle_alpha(0.3), rel=1e-12) and b.passed
 
 
-@pytest.mark.parametrize("element", ["P2", "Q1"])
-def test_any_element_and_any_orientation_of_gamma_c(element):
-    """A leaning quadrilateral rotated by 30 degrees: same critical value, same verdict."""
+def _leaning_mesh(element: str, rotation: float, n: int = 4) -> str:
+    """An inline n x n mesh of a leaning quadrilateral (contact at the base, top clamped),
+    rotated by ``rotation`` radians: the same mesh in any orientation."""
     corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.3, 1.0], [0.2, 1.0]])
-    c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
-    results = []
-    for pts in (corners, corners @ np.array([[c, s], [-s, c]])):
-        text = f"""
+    a, b = np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1))
+    a, b = a.ravel()[:, None], b.ravel()[:, None]
+    pts = ((1 - a) * (1 - b) * corners[0] + a * (1 - b) * corners[1] + a * b * corners[2]
+           + (1 - a) * b * corners[3])
+    c, s = np.cos(rotation), np.sin(rotation)
+    pts = pts @ np.array([[c, s], [-s, c]])
+    k = lambda i, j: j * (n + 1) + i  # noqa: E731
+    quads = [[k(i, j), k(i + 1, j), k(i + 1, j + 1), k(i, j + 1)]
+             for j in range(n) for i in range(n)]
+    triangles = [[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads]
+    cells = f"quads = {quads}" if element[0] == "Q" else f"triangles = {triangles}"
+    edges = {"base": [[k(i, 0), k(i + 1, 0)] for i in range(n)],
+             "top": [[k(i, n), k(i + 1, n)] for i in range(n)],
+             "right": [[k(n, j), k(n, j + 1)] for j in range(n)],
+             "left": [[k(0, j), k(0, j + 1)] for j in range(n)]}
+    return f"""
 [geometry]
-shape = "polygon"
-vertices = {pts.tolist()}
-edge_names = ["base", "right", "top", "left"]
+shape = "mesh"
+nodes = {pts.tolist()}
+{cells}
+[geometry.edges]
+""" + "".join(f"{name} = {pairs}\n" for name, pairs in edges.items()) + f"""
 [boundary]
 contact = ["base"]
 dirichlet = ["top"]
 [mesh]
 element = "{element}"
-size = 0.25
 """
-        v = verify.verify(loads_case(text))
+
+
+@pytest.mark.parametrize("element", ["P2", "Q1", "Q2"])
+def test_any_element_and_any_orientation_of_gamma_c(element):
+    """The same mesh, level and rotated by 30 degrees: same critical value, same verdict."""
+    results = []
+    for rotation in (0.0, np.pi / 6):
+        v = verify.verify(loads_case(_leaning_mesh(element, rotation)))
         assert v.passed and v.critical.max_residual <= 1e-10
         results.append(v.critical.friction)
     assert results[1] == pytest.approx(results[0], rel=1e-10)
 
 
 def test_negative_family_when_no_positive_value():
-    """Leaning the other way: the critical value is for slip along -t; verify still passes."""
+    """The one triangle mirrored (B = (1, 0)): its only critical value is for slip along -t
+    (alpha = -(3 - 4 nu)); verify walks that branch."""
     text = """
 [geometry]
-shape = "parallelogram"
-base = 1.0
-height = 3.0
-offset = 1.0
-[mesh]
-size = 0.25
+shape = "mesh"
+nodes = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]
+triangles = [[0, 1, 2]]
+[geometry.edges]
+contact = [[0, 1]]
+clamped = [[1, 2]]
+free = [[2, 0]]
+[boundary]
+contact = ["contact"]
+dirichlet = ["clamped"]
 """
     v = verify.verify(loads_case(text))
     assert v.critical.gamma == -1 and v.passed
+    assert v.critical.friction == pytest.approx(one_triangle_alpha(0.3), rel=1e-12)
+    assert v.critical.alpha == pytest.approx(-v.critical.friction)
     assert set(verify.newton_check(v.critical, v.critical.inside[1]).labels) == {"slip-"}
-    assert v.critical.friction > 0 and v.critical.alpha == pytest.approx(-v.critical.friction)
 
 
 def test_cli_verify_json_and_plot(tmp_path):
@@ -120,6 +146,8 @@ def test_cli_verify_json_and_plot(tmp_path):
     table = run("verify", "four-triangles", "--no-plot", "--off", 0.02)
     assert table.exit_code == 0 and "verification PASSED" in table.stdout
     assert "newton" in table.stdout and "delta0" in table.stdout
+    bad = run("verify", "four-triangles", "--no-plot", "--off", 0)
+    assert bad.exit_code == 2 and "--off" in bad.output
 
 
 def test_cli_solutions_json_and_plot(tmp_path):
