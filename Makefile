@@ -33,7 +33,7 @@ test: $(STAMP)
 
 # property-based fuzzing of the case loader and the CLI: the test suite's examples, x SCALE
 fuzz: $(STAMP)
-	CRITFRIC_FUZZ_SCALE=$${SCALE:-30} $(BIN)/python -m pytest -q tests/test_fuzz.py
+	CRITFRIC_FUZZ_SCALE=$(or $(SCALE),30) $(BIN)/python -m pytest -q tests/test_fuzz.py
 
 clean:
 	rm -rf $(VENV) $(DEMO) .pytest_cache .hypothesis

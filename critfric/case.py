@@ -289,7 +289,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "backend": Key(_choice(*BACKENDS), "auto",
                        "sparse linear solver: auto (the fastest available), scipy, pardiso"),
         "count": Key(_integer(1, 1000), 1, "number of lowest positive critical coefficients"),
-        "shift": Key(_number(), 0.0, "look for eigenvalues nearest this friction value"),
+        "shift": Key(_number(-1e6, 1e6), 0.0, "look for eigenvalues nearest this friction "
+                     "value (|alpha| above 1e6 counts as infinite)"),
         "gamma": Key(_gamma, 1, "slip sign of every contact node (+1 or -1)"),
         "tol": Key(_number(0.0, 1e-2), 0.0, "ARPACK relative tolerance (0: machine precision)"),
         "maxiter": Key(_integer(1, 10**7), None, "ARPACK iteration cap (default: ARPACK's)"),

@@ -176,12 +176,18 @@ def sweep(
         grid = make_grid(loaded, nu=nu, size=size, element=element)
         for note in grid.notes:
             _err(f"critfric: note: {note}")
-        with progress_bar(enabled=not as_json and sys.stderr.isatty()) as on_point:
-            result = run_sweep(loaded, grid, output=output or sweep_output(loaded), jobs=jobs,
+        out = output or sweep_output(loaded)
+        with output_lock(out), \
+                progress_bar(enabled=not as_json and sys.stderr.isatty()) as on_point:
+            result = run_sweep(loaded, grid, output=out, jobs=jobs,
                                scheduler=scheduler, force=force, on_point=on_point)
         pngs = plot_file(result.path) if plot else []
     except CritfricError as exc:
         _fail(exc)
+    except KeyboardInterrupt:  # typer would exit 130 silently
+        _err("critfric: interrupted: every finished point is kept in the sweep file; run the "
+             "same command again to compute only the rest")
+        raise typer.Exit(130) from None
     typer.echo(json.dumps(result.summary()) if as_json else report(result))
     for png in pngs:
         _err(f"wrote {png}")

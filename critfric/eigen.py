@@ -51,14 +51,16 @@ from threadpoolctl import threadpool_limits
 from .contact import FREE, SLIP, STUCK, ContactSystem
 from .errors import SolverError
 from .linsolve import factorize, resolve_backend, schur
+from .ordering import dof_order, mesh_rank
 
 INFINITE_TOL = 1e-6
 RESIDUAL_TOL = 1e-6
 AUTO_DENSE_DOFS = 5000  # method "auto": dense up to this many free DOFs
 EXPLICIT_T_MAX = 3000  # widest ARPACK fallback: form T explicitly up to this p0
 WIDEN = 4  # ARPACK's second try asks for WIDEN times more eigenvalues
-SCHUR_MAX_CONTACT = 6000  # dense Schur path: at most this many contact nodes
+SCHUR_MAX_CONTACT = 4000  # dense Schur path: at most this many contact nodes
 FAST_SCHUR = ("pardiso",)  # backends whose factorization returns S itself
+ND_MIN_DOFS = 20000  # scipy backend: nested-dissection ordering from this many DOFs on
 START_SEED = 20030328  # fixed ARPACK start vector: identical runs give identical results
 
 
@@ -166,14 +168,18 @@ class _Reduced(_Problem):
         self.Kc = K[self.kept][:, self.kept].tocsc()
         self.Rn = K[system.cn[self.slip]][:, self.kept].tocsr()
         if shift == 0.0:
-            self.factor = factorize(self.Kc, symmetric=True, backend=backend)
+            self.factor = factorize(self.Kc, symmetric=True, backend=backend,
+                                    order=self.order(backend))
         else:  # M: slipping tangential rows <- gamma * normal reaction rows (rank p0)
             E = sp.csr_matrix((self.gamma, (self.tc, np.arange(len(self.slip)))),
                               shape=(self.Kc.shape[0], len(self.slip)))
             self.M = (E @ self.Rn).tocsr()
             self.factor = factorize((self.Kc - shift * self.M).tocsc(), symmetric=False,
-                                    backend=backend)
+                                    backend=backend, order=self.order(backend))
         self.applications = 0
+
+    def order(self, backend: str):
+        return _fill_order(self.system, self.kept, backend)
 
     def solve_tangential(self, r: np.ndarray) -> np.ndarray:
         """K_c V = tangential load r on the slipping nodes (r of shape (p0,) or (p0, k))."""
@@ -208,6 +214,16 @@ class _Reduced(_Problem):
         return out
 
 
+def _fill_order(system: ContactSystem, dofs: np.ndarray, backend: str):
+    """Nested-dissection order of the free DOFs ``dofs`` (node = DOF // 2) for the scipy
+    backend on large order-1 meshes; None otherwise (the backend orders by itself). On P2/Q2
+    meshes its separators are two node layers thick: no faster than minimum degree, and
+    larger (measured at 80 k-260 k DOFs)."""
+    if backend != "scipy" or len(dofs) < ND_MIN_DOFS or system.mesh.element not in ("P1", "Q1"):
+        return None
+    return dof_order(system.free[dofs] // 2, mesh_rank(system.mesh))
+
+
 def solve_dense(K, system: ContactSystem, state: ContactState, *, count: int,
                 real_tol: float, backend: str = "scipy") -> Spectrum:
     """Every eigenvalue, from the dense pencil on the Schur complement onto Gamma_C."""
@@ -216,7 +232,8 @@ def solve_dense(K, system: ContactSystem, state: ContactState, *, count: int,
     if p > SCHUR_MAX_CONTACT:
         raise SolverError(f"the dense path would form a {2 * p} x {2 * p} Schur complement "
                           f"({p} contact nodes > {SCHUR_MAX_CONTACT}); use method = 'arpack'")
-    sc = schur(K, np.concatenate([system.cn, system.ct]), backend=backend)
+    sc = schur(K, np.concatenate([system.cn, system.ct]), backend=backend,
+               order=_fill_order(system, np.arange(K.shape[0]), backend))
     spec = schur_spectrum(prob, sc.S, sc.extend, count=count, real_tol=real_tol)
     spec.backend = sc.backend
     return spec
@@ -230,9 +247,9 @@ def schur_spectrum(prob: _Problem, S: np.ndarray, extend, *, count: int,
     freen = np.flatnonzero(prob.state.status == FREE)
     u = np.concatenate([p + prob.slip, freen, p + freen])
     p0 = len(prob.slip)
-    # one BLAS thread: these matrices are small, and on a busy 2-core machine two threads
-    # made a 335 x 335 eig 5-30x slower (measured), more so right after PARDISO's threads ran
-    with threadpool_limits(1, user_api="blas"):
+    # one BLAS thread for small matrices: on a busy 2-core machine two threads made a
+    # 335 x 335 eig 5-30x slower (measured), more so right after PARDISO's threads ran
+    with threadpool_limits(1 if len(u) < 1500 else None, user_api="blas"):
         try:  # W = S_uu^-1 E (E: slipping tangential columns, the first p0 of u)
             W = la.cho_solve(la.cho_factor(S[np.ix_(u, u)]), np.eye(len(u), p0))
         except la.LinAlgError:
@@ -288,7 +305,8 @@ def solve_arpack(K, system: ContactSystem, state: ContactState, *, count: int, s
                               f"p0 = {p0} is too many to form T; try a larger [solve] tol, a "
                               "smaller count, method = 'dense' or a shift near the value sought")
         if shift != 0.0:
-            red.factor = factorize(red.Kc, symmetric=True, backend=backend)
+            red.factor = factorize(red.Kc, symmetric=True, backend=backend,
+                                   order=red.order(backend))
         beta, vecs = la.eig(red.explicit_T())
         if n >= 4:
             notes.append(f"T formed explicitly ({p0} solves) to find every eigenvalue")
@@ -335,8 +353,10 @@ def _finish(prob, alpha, real, index, phi_of, count, method, n_inf, applications
         if not mode.residual <= RESIDUAL_TOL:
             raise SolverError(
                 f"the eigenvector of alpha = {alpha[j].real:.10g} has relative residual "
-                f"{mode.residual:.2e} > {RESIDUAL_TOL:g} ({method} path); try method = 'dense' "
-                "or a tighter [solve] tol")
+                f"{mode.residual:.2e} > {RESIDUAL_TOL:g} ({method} path); the system is too "
+                "ill-conditioned (nu very near 0.5?): try "
+                + ("method = 'arpack', " if method == "dense" else "method = 'dense', ")
+                + "P2/Q2 elements or a tighter [solve] tol")
         modes.append(mode)
     alpha = np.where(real, alpha.real + 0j, alpha)
     spec = Spectrum(alpha=alpha, positive=alpha[pos].real, negative=alpha[neg].real,

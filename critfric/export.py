@@ -5,7 +5,8 @@ point data ``<mode>_phi`` (Phi padded with a zero z component: ParaView treats o
 3-component arrays as vectors) and ``<mode>_von_mises`` (nodal average), and cell data
 ``<mode>_stress`` (the plane-strain tensor at the cell centroid, 9 components: ParaView's
 tensor layout) and ``<mode>_von_mises``. Phi is scaled to max |Phi| = 1 and the stresses are
-those of that Phi (units of E per unit length). The alphas are in the solve file (``critfric table``).
+those of that Phi (units of E per unit length). The alphas are in the solve file
+(``critfric table``).
 """
 
 from __future__ import annotations

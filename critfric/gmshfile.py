@@ -339,5 +339,9 @@ def file_mesh(case, *, max_dofs: int | None = None, trust_geo: bool = False) -> 
                    what=f"{path.name} at mesh size about {h:.3g}", source=case.source,
                    footprint=footprint, max_dofs=max_dofs)
 
-    return mesh_geo(path, element=element, size=case.mesh["size"], domain=domain,
+    mesh = mesh_geo(path, element=element, size=case.mesh["size"], domain=domain,
                     trust=trust_geo, check=check)
+    # the estimate misses size fields and transfinite counts: check the real mesh too
+    check_dofs(2.0 * mesh.n_nodes, element=element, what=f"the mesh of {path.name}",
+               source=case.source, key="geometry.file", max_dofs=max_dofs)
+    return mesh

@@ -6,10 +6,13 @@ MMD_AT_PLUS_A, 2.0 s with a METIS ordering). This module computes one from the m
 every part is split at the median of its longer coordinate extent, the nodes of the lower half
 that share a cell with the upper half form the separator, and a separator is ordered after
 the two halves it separates (recursively; one vectorized pass per level). Any ordering gives
-the same solution; a good one only makes the factorization cheaper.
+the same solution; a good one only makes the factorization cheaper. Used for order-1 meshes
+(P1, Q1): on P2/Q2 these separators are two node layers thick and minimum degree does as well.
 """
 
 from __future__ import annotations
+
+import weakref
 
 import numpy as np
 
@@ -17,11 +20,15 @@ LEAF = 64  # parts of at most this many nodes are not split further
 MAX_LEVELS = 50  # keeps the integer keys of the dissection tree exact
 
 
-def node_edges(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Directed pairs (u, v) of nodes sharing a cell (both directions, duplicates kept)."""
-    cells = np.asarray(cells)
+def node_edges(cells: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Directed pairs (u, v) of distinct nodes sharing a cell, each pair once per direction."""
+    cells = np.asarray(cells, dtype=np.int64)
     a, b = np.triu_indices(cells.shape[1], k=1)
     u, v = cells[:, a].ravel(), cells[:, b].ravel()
+    key = np.sort(np.minimum(u, v) * n + np.maximum(u, v))
+    key = key[np.r_[True, key[1:] != key[:-1]]]
+    itype = np.int32 if n < 2**31 else np.int64
+    u, v = (key // n).astype(itype), (key % n).astype(itype)
     return np.concatenate([u, v]), np.concatenate([v, u])
 
 
@@ -29,7 +36,7 @@ def nested_dissection(points: np.ndarray, cells: np.ndarray, *, leaf: int = LEAF
     """The elimination rank of every node (a permutation of range(n_nodes))."""
     points = np.asarray(points, dtype=float)
     n = len(points)
-    u, v = node_edges(cells)
+    u, v = node_edges(cells, n)
     code = np.zeros(n, dtype=np.int64)  # bits of the dissection path (one per level)
     stop = np.full(n, -1)  # level at which the node left the dissection
     sep = np.zeros(n, dtype=bool)  # left as a separator node (else as a leaf node)
@@ -51,10 +58,10 @@ def nested_dissection(points: np.ndarray, cells: np.ndarray, *, leaf: int = LEAF
         upper[order] = rank >= size[group] // 2
         leafy = np.zeros(n, dtype=bool)
         leafy[order] = (size[group] <= leaf) | (level >= MAX_LEVELS)
-        live = np.zeros(n, dtype=bool)
-        live[order] = True
-        # separator: lower-half nodes sharing a cell with the upper half of the same part
-        cut = live[u] & live[v] & (code[u] == code[v]) & ~upper[u] & upper[v] & ~leafy[u]
+        # (u, v) now join active nodes of one part; the separator: lower-half nodes sharing
+        # a cell with the upper half
+        up_u, up_v = upper[u], upper[v]
+        cut = ~up_u & up_v & ~leafy[u]
         new_sep = np.zeros(n, dtype=bool)
         new_sep[u[cut]] = True
         leaving = order[leafy[order] | new_sep[order]]
@@ -63,9 +70,7 @@ def nested_dissection(points: np.ndarray, cells: np.ndarray, *, leaf: int = LEAF
         code[active] = 2 * code[active] + upper[active]
         still = np.zeros(n, dtype=bool)
         still[active] = True
-        keep = still[u] & still[v]
-        u, v = u[keep], v[keep]
-        keep = code[u] == code[v]
+        keep = still[u] & still[v] & (up_u == up_v)
         u, v = u[keep], v[keep]
         level += 1
     depth = level
@@ -77,3 +82,18 @@ def nested_dissection(points: np.ndarray, cells: np.ndarray, *, leaf: int = LEAF
 def dof_order(nodes: np.ndarray, rank: np.ndarray) -> np.ndarray:
     """A permutation of DOFs (``nodes[i]``: the node of DOF i) that follows the node ranks."""
     return np.lexsort((np.arange(len(nodes)), rank[nodes]))
+
+
+_RANKS: dict[int, tuple[weakref.ref, np.ndarray]] = {}
+
+
+def mesh_rank(mesh) -> np.ndarray:
+    """:func:`nested_dissection` of a mesh, computed once per mesh object (a sweep over nu
+    reuses it)."""
+    entry = _RANKS.get(id(mesh))
+    if entry is not None and entry[0]() is mesh:
+        return entry[1]
+    rank = nested_dissection(mesh.points, mesh.cells)
+    key = id(mesh)
+    _RANKS[key] = (weakref.ref(mesh, lambda _: _RANKS.pop(key, None)), rank)
+    return rank

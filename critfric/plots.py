@@ -10,8 +10,10 @@ and ``r_spectrum.png`` (eigenvalues in the complex plane, real critical ones mar
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
+from textwrap import shorten
 
 import h5py
 import numpy as np
@@ -63,6 +65,8 @@ def _save(fig: Figure, path: Path) -> Path:
 def plot_sweep(path: Path, *, nu: float | None = None) -> list[Path]:
     data = read_sweep(path)
     rows, limits = data["rows"], data["limits"]
+    order = {el: i for i, el in enumerate(json.loads(data["attrs"]["grid"])["element"])}
+    rows = sorted(rows, key=lambda r: (order.get(r["element"], 99), r["nu"]))
     title = f"{data['attrs'].get('case_name', '')}"
     out = [_save(_critical_vs_nu(rows, limits, title), path.with_name(f"{path.stem}_critical.png"))]
     sizes = {r["size"] for r in rows if r["size"] is not None}
@@ -95,15 +99,21 @@ def _critical_vs_nu(rows, limits, title) -> Figure:
                 label = el if size is None else f"{el}, h = {size:g}"
                 ax.plot(x, y, marker=marker, ms=4, lw=1, color=color, alpha=shade, label=label)
             lims = sorted((lim for lim in limits if lim["element"] == el
-                           and lim["family"] == family and lim["status"] == "ok"),
-                          key=lambda lim: lim["nu"])
-            if lims:
+                           and lim["family"] == family), key=lambda lim: lim["nu"])
+            if any(lim["status"] == "ok" for lim in lims):  # NaN (a gap) where not converged
                 ax.plot([lim["nu"] for lim in lims], [sign * lim["limit"] for lim in lims],
-                        ls="--", lw=2, color=color, label=f"{el}, h → 0 (Richardson)")
+                        ls="--", lw=2, marker="*", ms=8, color=color,
+                        label=f"{el}, h → 0 (Richardson)")
         bad = [lim for lim in limits if lim["family"] == family and lim["status"] != "ok"]
-        if bad:
-            ax.text(0.02, 0.02, f"{len(bad)} (ν, element) famil{'y' if len(bad) == 1 else 'ies'}"
-                    " not converged: no limit drawn", transform=ax.transAxes, fontsize=8)
+        notes = [f"{len(bad)} (ν, element) famil{'y' if len(bad) == 1 else 'ies'} not "
+                 "converged: no limit drawn"] if bad else []
+        missing = sorted({r["nu"] for r in rows if not r[family]})
+        if missing:
+            shown = ", ".join(f"{v:g}" for v in missing[:6]) + (", ..." if len(missing) > 6
+                                                                 else "")
+            notes.append(f"no real {family} eigenvalue found at ν = {shown}")
+        if notes:
+            ax.text(0.02, 0.02, "\n".join(notes), transform=ax.transAxes, fontsize=8)
         ax.set_xlabel(r"Poisson ratio $\nu$")
         what = "lowest positive eigenvalue" if family == "positive" else \
             "|lowest negative eigenvalue|"
@@ -131,47 +141,46 @@ def _pick_nu(rows, nu):
 
 def _convergence(rows, limits, title, nu) -> Figure:
     nu = _pick_nu(rows, nu)
-    fig = Figure(figsize=(12.8, 4.8))
-    left, right = fig.subplots(1, 2)
-    any_error = False
-    for el in dict.fromkeys(r["element"] for r in rows):
+    elements = list(dict.fromkeys(r["element"] for r in rows))
+    found = {m["element"]: m for m in limits if m["nu"] == nu and m["family"] == "positive"}
+    with_limit = [el for el in elements if found.get(el, {}).get("status") == "ok"]
+    fig = Figure(figsize=(12.8 if with_limit else 6.4, 4.8))
+    axes = fig.subplots(1, 2 if with_limit else 1, squeeze=False)[0]
+    left = axes[0]
+    sizes = sorted({r["size"] for r in rows if r["size"] is not None}, reverse=True)
+    for el in elements:
         color, marker = _STYLE[el]
         rs = sorted((r for r in rows if r["element"] == el and r["nu"] == nu
                      and r["size"] is not None), key=lambda r: -r["size"])
         h = np.array([r["size"] for r in rs])
         y = np.array([_value(r, "positive") for r in rs])
-        left.semilogx(h, y, marker=marker, color=color, label=el)
-        lim = next((m for m in limits if m["element"] == el and m["nu"] == nu
-                    and m["family"] == "positive"), None)
-        if lim is None:
-            continue
-        if lim["status"] != "ok":
-            left.plot([], [], " ", label=f"{el}: not converged")
+        left.plot(h, y, marker=marker, color=color, label=f"{el}: computed")
+        lim = found.get(el)
+        if lim is not None and lim["status"] != "ok":
+            why = shorten(lim["status"].removeprefix("not converged: "), 60, placeholder="...")
+            left.plot([], [], " ", label=f"{el}: no limit ({why})")
+        if el not in with_limit:
             continue
         left.axhline(lim["limit"], color=color, ls="--", lw=1,
-                     label=f"{el} limit {lim['limit']:.6f} ± {lim['error']:.1e}")
+                     label=f"{el}: h → 0 limit {lim['limit']:.6f} ± {lim['error']:.1e}")
         err = np.abs(y - lim["limit"])
         ok = np.isfinite(err) & (err > 0)
-        right.loglog(h[ok], err[ok], marker=marker, color=color,
+        axes[1].plot(h[ok], err[ok], marker=marker, color=color,
                      label=f"{el}: observed order p = {lim['order']:.2f}")
-        any_error = True
-    left.invert_xaxis()
-    left.set_xlabel("mesh size h (case length units)")
+    for ax in axes:
+        ax.set_xscale("log")
+        ax.set_xticks(sizes, [f"{v:g}" for v in sizes])
+        ax.minorticks_off()
+        ax.invert_xaxis()
+        ax.set_xlabel("mesh size h (case length units)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
     left.set_ylabel(f"{ALPHA_LABEL}\n(lowest positive eigenvalue)")
     left.set_title(f"{title}: convergence at ν = {nu:g}")
-    left.grid(True, which="both", alpha=0.3)
-    left.legend(fontsize=8)
-    if any_error:
-        right.invert_xaxis()
-        right.set_xlabel("mesh size h (case length units)")
-        right.set_ylabel(r"$|\mu_{\rm cr}(h) - \mu_{\rm cr}(h \to 0)|$")
-        right.set_title("distance to the extrapolated limit")
-        right.grid(True, which="both", alpha=0.3)
-        right.legend(fontsize=8)
-    else:
-        right.set_axis_off()
-        right.text(0.5, 0.5, "no h → 0 limit: needs three sizes and a converged family",
-                   ha="center", va="center", transform=right.transAxes)
+    if with_limit:
+        axes[1].set_yscale("log")
+        axes[1].set_ylabel(r"$|\mu_{\rm cr}(h) - \mu_{\rm cr}(h \to 0)|$")
+        axes[1].set_title("distance to the extrapolated limit (log-log)")
     fig.tight_layout()
     return fig
 

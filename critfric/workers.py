@@ -20,9 +20,9 @@ import multiprocessing as mp
 import os
 import signal
 from collections import deque
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from multiprocessing.connection import wait
-from typing import Callable, Iterator
 
 import numpy as np
 
@@ -33,6 +33,7 @@ THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
 _ORDER = {"P1": 1, "Q1": 1, "P2": 2, "Q2": 2}
 READY = "ready"  # a worker's first message
 CONNECT_TIMEOUT = "10s"  # to reach a Dask scheduler
+WORKER_WAIT = 60  # seconds to wait for a first Dask worker
 
 
 # ------------------------------------------------------------------------------ scheduling
@@ -184,7 +185,11 @@ def run_dask(client, fn: Callable, spec: dict, points: list) -> Iterator[tuple]:
 
     futures = {}
     try:
-        client.wait_for_workers(1, timeout=60)
+        try:
+            client.wait_for_workers(1, timeout=WORKER_WAIT)
+        except TimeoutError:
+            raise CaseError(f"the Dask scheduler has no worker after {WORKER_WAIT} s; start "
+                            "some (dask worker ADDRESS)", key="--scheduler") from None
         slots = sorted(client.nthreads())
         load = {w: 0.0 for w in slots}
         for chunk in make_chunks(points, len(slots)):

@@ -149,7 +149,7 @@ def test_ctrl_c_during_a_solve_keeps_the_old_file_and_refuses_a_second_writer(tm
     out = tmp_path / "r.h5"
     assert runner.invoke(app, ["solve", "one-triangle", "-o", str(out)]).exit_code == 0
     old = out.read_bytes()
-    proc = _cli("solve", "unit-square", "--size", "0.01", "--method", "arpack", "-o", out,
+    proc = _cli("solve", "unit-square", "--size", "0.007", "--method", "arpack", "-o", out,
                 "--force")
     try:
         _wait_for(tmp_path / ".r.h5.lock", proc)

@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 import critfric
 from critfric import case as case_module
-from critfric import eigen, linsolve
+from critfric import eigen, linsolve, ordering
 from critfric.assembly import lame
 from critfric.case import loads_case
 from critfric.cli import app
@@ -172,3 +172,33 @@ def test_missing_backend_is_a_solver_error(monkeypatch):
     assert linsolve.resolve_backend("auto") == "scipy"
     with pytest.raises(SolverError, match="not available.*critfric\\[fast\\]"):
         linsolve.resolve_backend("pardiso")
+
+
+def test_nested_dissection_is_a_fill_reducing_permutation():
+    prep = prepare(loads_case(square_case(size=0.01)))
+    s, mesh = prep.system, prep.mesh
+    rank = ordering.nested_dissection(mesh.points, mesh.cells)
+    np.testing.assert_array_equal(np.sort(rank), np.arange(mesh.n_nodes))
+    K = s.stiffness(*lame(1.0, 0.3))
+    nd = linsolve.ScipyFactor(K, symmetric=True, order=ordering.dof_order(s.free // 2, rank))
+    mmd = linsolve.ScipyFactor(K, symmetric=True)
+    fill = [f._lu.L.nnz + f._lu.U.nnz for f in (nd, mmd)]
+    assert fill[0] <= 1.2 * fill[1]  # minimum degree's fill or better (2x less at 1 M DOFs)
+    b = np.random.default_rng(1).standard_normal(K.shape[0])
+    np.testing.assert_allclose(nd.solve(b), mmd.solve(b), rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("element", ["P1", "Q1"])
+def test_scipy_paths_with_nested_dissection_agree(element, monkeypatch):
+    system = prepare(loads_case(square_case(element=element, size=0.125))).system
+    K = system.stiffness(*lame(1.0, 0.3))
+    state = mixed_state(system.n_contact)
+    ref = [eigen.solve(K, system, state, method=m, count=1, backend="scipy")
+           for m in ("dense", "arpack")]
+    monkeypatch.setattr(eigen, "ND_MIN_DOFS", 0)
+    assert eigen._fill_order(system, np.arange(K.shape[0]), "scipy") is not None
+    got = [eigen.solve(K, system, state, method=m, count=1, backend="scipy")
+           for m in ("dense", "arpack")]
+    for a, b in zip(got, ref):
+        np.testing.assert_allclose(a.positive[:1], b.positive[:1], rtol=1e-10)
+        np.testing.assert_allclose(a.modes[0].phi, b.modes[0].phi, atol=1e-9)

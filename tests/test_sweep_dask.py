@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import critfric
+from critfric import workers
 from critfric.errors import CaseError
 from critfric.sweep import make_grid, run_sweep
-from critfric import workers
 from critfric.sweepfile import read_sweep
 
 from helpers import CASES, square_case

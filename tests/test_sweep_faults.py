@@ -64,7 +64,7 @@ def test_a_sweep_file_killed_while_writing_a_point_stays_readable_and_appendable
             leftover.unlink()
 
 
-SWEEP = ["sweep", "unit-square", "--nu", "0.02:0.46:12", "--size", "0.025", "--element", "P1",
+SWEEP = ["sweep", "unit-square", "--nu", "0.02:0.46:24", "--size", "0.025", "--element", "P1",
          "--jobs", "2"]
 
 
@@ -97,14 +97,14 @@ def test_ctrl_c_with_worker_processes_keeps_every_point_and_resumes_exactly_once
     assert proc.returncode == 130, stderr
     assert "Traceback" not in stderr and "interrupted" in stderr
     kept = read_sweep(out)["rows"]
-    assert 2 <= len(kept) < 12 and all(r["status"] == "ok" for r in kept)
+    assert 2 <= len(kept) < 24 and all(r["status"] == "ok" for r in kept)
     assert [p.name for p in tmp_path.iterdir()] == ["s.h5"]  # no lock, no temporary file
     case = critfric.load_case("unit-square")
-    grid = make_grid(case, nu="0.02:0.46:12", size="0.025", element="P1")
+    grid = make_grid(case, nu="0.02:0.46:24", size="0.025", element="P1")
     resumed = run_sweep(case, grid, output=out, jobs=1)
-    assert resumed.computed == 12 - len(kept)
+    assert resumed.computed == 24 - len(kept)
     keys = [(r["element"], r["size"], r["nu"]) for r in read_sweep(out)["rows"]]
-    assert len(keys) == len(set(keys)) == 12
+    assert len(keys) == len(set(keys)) == 24
     assert sorted(k[2] for k in keys) == grid.nu
 
 
