@@ -170,7 +170,7 @@ def main() -> None:
             "| peak GB | factor | eigen/factor | critical | plain SciPy | plain/total |")
     print(head)
     print("|" + "---|" * (head.count("|") - 1))
-    for name in a.sizes.split(","):
+    for name in filter(None, a.sizes.split(",")):
         h = SIZES[name]
         plain = None
         for b in backends:

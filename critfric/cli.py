@@ -16,7 +16,7 @@ import typer
 from . import __version__
 from .case import BACKENDS, ELEMENTS, METHODS, OVERRIDES, load_case, shipped_cases
 from .errors import CritfricError
-from .guards import output_lock
+from .guards import interrupt_guard, output_lock
 from .results import check_output, default_output, read_summary, write_result
 from .solve import solve_case
 
@@ -85,9 +85,10 @@ def solve(
     try:
         loaded = load_case(case, overrides=overrides)
         path = check_output(default_output(loaded), force=force)
-        with output_lock(path):
+        with interrupt_guard() as interrupted, output_lock(path):
             check_output(path, force=force)  # again: another run may have written it
             result = solve_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo)
+            interrupted.check()  # a Ctrl-C that Python swallowed: still nothing written
             write_result(result, path, force=force)
         if plot:
             from .plots import plot_file
@@ -177,10 +178,15 @@ def sweep(
         for note in grid.notes:
             _err(f"critfric: note: {note}")
         out = output or sweep_output(loaded)
-        with output_lock(out), \
+        with interrupt_guard() as interrupted, output_lock(out), \
                 progress_bar(enabled=not as_json and sys.stderr.isatty()) as on_point:
+
+            def point_done(row, done, total):  # after each point written: honour Ctrl-C
+                on_point(row, done, total)
+                interrupted.check()
+
             result = run_sweep(loaded, grid, output=out, jobs=jobs,
-                               scheduler=scheduler, force=force, on_point=on_point)
+                               scheduler=scheduler, force=force, on_point=point_done)
         pngs = plot_file(result.path) if plot else []
     except CritfricError as exc:
         _fail(exc)

@@ -1,12 +1,15 @@
-"""Guards: refuse a mesh that would not fit in memory, and lock an output file while writing.
+"""Guards: refuse a mesh that would not fit in memory, honour Ctrl-C, lock an output file.
 
 Resources: before meshing, the node count is estimated from the domain's area A, perimeter P
 and vertex count (``nodes(h) = k (A / (c h^2) + P / (2 h) + n_v)``, c = sqrt(3)/2 for
 triangles and 1 for quads, k = 4 for P2/Q2), the DOFs are twice that, and the peak memory of
-a solve is ``BASE_BYTES + BYTES_PER_DOF_LOG * n log2 n`` (sparse LU fill; measured on P1, P2,
-Q1 and Q2 unit squares from 1e4 to 1e6 DOFs, conservative by about 20%). A solve above the
+a solve is ``BASE_BYTES + BYTES_PER_DOF_LOG * n log2 n`` (sparse LU fill with SuperLU:
+fitted to P1, P2, Q1 and Q2 unit squares near 1e5 DOFs and to 1e6 DOFs, conservative by
+15-30%; the faster backends need less). A solve above the
 memory available (or above ``max_dofs`` when given) is a :class:`CaseError` that gives the
 estimate and the finest mesh size that fits.
+
+Interrupts: :class:`interrupt_guard` makes sure a Ctrl-C is honoured at the next safe point.
 
 Locks: :func:`output_lock` holds an exclusive ``fcntl`` lock on ``.<name>.lock`` next to the
 output for the whole solve; a second writer is refused at once.
@@ -17,6 +20,8 @@ from __future__ import annotations
 import fcntl
 import math
 import os
+import signal
+import sys
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -146,6 +151,44 @@ def polygon_footprint(vertices: np.ndarray) -> Footprint:
         area = 0.5 * abs(float(np.sum(v[:, 0] * w[:, 1] - w[:, 0] * v[:, 1])))
         perimeter = float(np.linalg.norm(w - v, axis=1).sum())
     return Footprint(area, perimeter, len(v))
+
+
+# ------------------------------------------------------------------------------ interrupts
+class interrupt_guard:
+    """Ctrl-C that is never lost. SIGINT raises KeyboardInterrupt as usual and also sets a flag;
+    :meth:`check` raises it again at a safe point. CPython drops (and prints) an exception
+    raised inside a garbage-collection callback or ``__del__``: there the interrupt is kept
+    silently for :meth:`check`. A no-op outside the main thread or if SIGINT is ignored."""
+
+    def __enter__(self) -> "interrupt_guard":
+        self.hit = False
+        self._saved = None
+        try:
+            if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
+                self._saved = signal.signal(signal.SIGINT, self._handler)
+        except ValueError:  # not the main thread
+            return self
+        self._hook = sys.unraisablehook
+        sys.unraisablehook = self._unraisable
+        return self
+
+    def _handler(self, signum, frame):
+        self.hit = True
+        raise KeyboardInterrupt
+
+    def _unraisable(self, info) -> None:
+        if not (self.hit and issubclass(info.exc_type, KeyboardInterrupt)):
+            self._hook(info)
+
+    def check(self) -> None:
+        """Raise KeyboardInterrupt if Ctrl-C was pressed, even if it was swallowed."""
+        if self.hit:
+            raise KeyboardInterrupt
+
+    def __exit__(self, *exc) -> None:
+        if self._saved is not None:
+            signal.signal(signal.SIGINT, self._saved)
+            sys.unraisablehook = self._hook
 
 
 # ---------------------------------------------------------------------------------- locks

@@ -46,7 +46,7 @@ HAZARDS = {
     "NonBlockingSystemCall": 'NonBlockingSystemCall "touch {p}";',
     "StringToName": 'StringToName["SystemCall"] "touch {p}";',
     "S2N": 'S2N[StrCat("System", "Call")] "touch {p}";',
-    "Printf": 'Printf("owned") > "{p}";',
+    "Printf": 'Printf("owned") /* > */\n// ) >\n>> "{p}";',
     "Save": 'Save "{p}.msh";',
     "CreateDir": 'CreateDir "{p}";',
     "Include": 'Include "{inc}";',
@@ -157,7 +157,7 @@ def _write_msh(path, surfaces: dict, curves: dict, *, version=4.1, binary=False)
     repeat a curve of another name: one curve in two physical groups)."""
     import gmsh
 
-    gmsh.initialize(readConfigFiles=False)
+    gmsh.initialize(readConfigFiles=False, interruptible=False)  # keep Python's Ctrl-C
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.model.add("written")

@@ -20,8 +20,8 @@ from critfric.case import loads_case
 from critfric.cli import app
 from critfric.errors import CaseError
 from critfric.geometry import polygon
-from critfric.guards import (Footprint, check_dofs, dofs_that_fit, memory_estimate,
-                             output_lock, polygon_footprint)
+from critfric.guards import (Footprint, check_dofs, dofs_that_fit, interrupt_guard,
+                             memory_estimate, output_lock, polygon_footprint)
 from critfric.mesh import build_mesh
 from critfric.results import atomic_h5
 
@@ -111,6 +111,33 @@ def test_cli_refuses_an_output_being_written(tmp_path):
     assert read_summary(out)["positive"] == pytest.approx([1.8])
 
 
+# ------------------------------------------------------------------------ Ctrl-C
+class _Collected:
+    """Sends SIGINT to this process from ``__del__``: Python drops a KeyboardInterrupt
+    raised there (as it does in garbage-collection callbacks)."""
+
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGINT)
+        sum(range(10_000))  # the handler runs here, inside __del__
+
+
+def test_a_ctrl_c_that_python_swallows_is_still_honoured():
+    calls = []
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)  # even if ignored
+    saved = sys.unraisablehook
+    sys.unraisablehook = calls.append
+    try:
+        with interrupt_guard() as guard:
+            _Collected()  # freed at once
+            assert calls == []  # dropped silently, not reported as an ignored exception
+            with pytest.raises(KeyboardInterrupt):
+                guard.check()
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+    finally:
+        sys.unraisablehook = saved
+        signal.signal(signal.SIGINT, before)
+
+
 # ------------------------------------------------------------------------ atomic writes
 def test_an_interrupted_write_leaves_the_old_file_and_no_temporary(tmp_path):
     out = tmp_path / "r.h5"
@@ -131,7 +158,12 @@ def _cli(*args) -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=str(REPO), OMP_NUM_THREADS="1")
     return subprocess.Popen([sys.executable, "-c", "from critfric.cli import main; main()",
                              *map(str, args)], env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=_ctrl_c_on)
+
+
+def _ctrl_c_on() -> None:
+    """In the child: SIGINT as in a terminal, even if the tests run with SIGINT ignored."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 60) -> None:
