@@ -8,14 +8,14 @@ names the file, the dotted key, the value and what is allowed.
 
 from __future__ import annotations
 
-import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import tomli_w
 
+from . import checks as c
 from .errors import CaseError
 
 ELEMENTS = ("P1", "P2", "Q1", "Q2")
@@ -24,304 +24,79 @@ METHODS = ("auto", "arpack", "dense")
 BACKENDS = ("auto", "scipy", "pardiso")  # linear solvers: critfric.linsolve.BACKENDS
 
 
-# ----------------------------------------------------------------------------- field checks
-@dataclass(frozen=True)
-class Key:
-    """One key of the schema: its check, its default (``REQUIRED`` if none) and its meaning."""
+POSITIVE = c.number(0.0, lo_open=True)
 
-    check: Callable[[Any], Any]
-    default: Any
-    doc: str
-
-
-REQUIRED = object()
-
-
-class _Bad(ValueError):
-    """Raised by a check: the text says what is allowed."""
-
-
-def _number(lo=-math.inf, hi=math.inf, *, lo_open=False, hi_open=False):
-    def check(value):
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise _Bad("a number")
-        value = float(value)
-        low_ok = value > lo if lo_open else value >= lo
-        high_ok = value < hi if hi_open else value <= hi
-        if not (math.isfinite(value) and low_ok and high_ok):
-            left = "(" if lo_open else "["
-            right = ")" if hi_open else "]"
-            raise _Bad(f"a finite number in {left}{lo:g}, {hi:g}{right}")
-        return value
-
-    return check
-
-
-def _integer(lo, hi):
-    def check(value):
-        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-            raise _Bad(f"an integer in [{lo}, {hi}]")
-        return value
-
-    return check
-
-
-def _choice(*allowed):
-    def check(value):
-        if value not in allowed:
-            raise _Bad("one of " + ", ".join(repr(a) for a in allowed))
-        return value
-
-    return check
-
-
-def _boolean(value):
-    if not isinstance(value, bool):
-        raise _Bad("true or false")
-    return value
-
-
-def _string(value):
-    if not isinstance(value, str) or not value:
-        raise _Bad("a non-empty string")
-    return value
-
-
-def _path(value):
-    if not isinstance(value, str) or not value.strip() or "\x00" in value:
-        raise _Bad("a file path (a non-empty string without NUL characters)")
-    return value
-
-
-def _names(value):
-    if isinstance(value, str):
-        value = [value]
-    if not isinstance(value, list) or not value or not all(
-        isinstance(v, str) and v for v in value
-    ):
-        raise _Bad("a non-empty list of edge names (strings)")
-    if len(set(value)) != len(value):
-        raise _Bad("a list of distinct edge names")
-    return list(value)
-
-
-def _points(value):
-    ok = isinstance(value, list) and len(value) >= 3 and all(
-        isinstance(p, list) and len(p) == 2
-        and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
-                for c in p)
-        for p in value
-    )
-    if not ok:
-        raise _Bad("a list of at least 3 points [x, y] with finite numbers")
-    return [[float(c) for c in p] for p in value]
-
-
-def _index_rows(width):
-    def check(value):
-        ok = isinstance(value, list) and len(value) >= 1 and all(
-            isinstance(r, list) and len(r) in width
-            and all(isinstance(i, int) and not isinstance(i, bool) and i >= 0 for i in r)
-            for r in value
-        )
-        if not ok:
-            sizes = " or ".join(str(w) for w in width)
-            raise _Bad(f"a non-empty list of rows of {sizes} node indices (integers >= 0)")
-        return value
-
-    return check
-
-
-def _edge_table(value):
-    if not isinstance(value, dict) or not value:
-        raise _Bad("a table: edge name = [[node, node], ...]")
-    out = {}
-    for name, rows in value.items():
-        try:
-            out[name] = _index_rows((2,))(rows)
-        except _Bad as bad:
-            raise _Bad(f"for edge {name!r}: {bad}") from None
-    return out
-
-
-def _string_list(value):
-    if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
-        raise _Bad("a list of non-empty strings")
-    return list(value)
-
-
-def _gamma(value):
-    if isinstance(value, bool) or value not in (1, -1):
-        raise _Bad("1 or -1")
-    return int(value)
-
-
-def _finite(c) -> bool:
-    return isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
-
-
-def _vector(value):
-    if not (isinstance(value, list) and len(value) == 2 and all(_finite(c) for c in value)):
-        raise _Bad("a vector [x, y] of 2 finite numbers")
-    return [float(c) for c in value]
-
-
-def _table_of(check, what):
-    def table(value):
-        if not isinstance(value, dict) or not value:
-            raise _Bad(f"a table: edge name = {what}")
-        out = {}
-        for name, entry in value.items():
-            try:
-                out[name] = check(entry)
-            except _Bad as bad:
-                raise _Bad(f"for edge {name!r}: {bad}") from None
-        return out
-
-    return table
-
-
-def _displacement(value):
-    """[ux, uy] (constant) or [[a0, ax, ay], [b0, bx, by]]: u = (a0 + ax x + ay y, b0 + ...)."""
-    if isinstance(value, list) and len(value) == 2 and all(_finite(c) for c in value):
-        return [[float(value[0]), 0.0, 0.0], [float(value[1]), 0.0, 0.0]]
-    if isinstance(value, list) and len(value) == 2 and all(
-            isinstance(r, list) and len(r) == 3 and all(_finite(c) for c in r) for r in value):
-        return [[float(c) for c in r] for r in value]
-    raise _Bad("[ux, uy] (constant) or [[a0, ax, ay], [b0, bx, by]] (ux = a0 + ax x + ay y, "
-               "uy = b0 + bx x + by y), finite numbers")
-
-
-def _point_forces(value):
-    what = "a list of tables {node = i, force = [fx, fy]} or {at = [x, y], force = [fx, fy]}"
-    if not isinstance(value, list) or not value:
-        raise _Bad(what)
-    out = []
-    for i, entry in enumerate(value):
-        ok = isinstance(entry, dict) and set(entry) in ({"node", "force"}, {"at", "force"})
-        try:
-            if not ok:
-                raise _Bad(what)
-            force = _vector(entry["force"])
-            if "node" in entry:
-                node = entry["node"]
-                if isinstance(node, bool) or not isinstance(node, int) or node < 0:
-                    raise _Bad("node: a node index (integer >= 0)")
-                out.append({"node": node, "force": force})
-            else:
-                out.append({"at": _vector(entry["at"]), "force": force})
-        except _Bad as bad:
-            raise _Bad(f"entry {i}: {bad}") from None
-    return out
-
-
-def _reference(value):
-    if _finite(value):
-        return float(value)
-    if isinstance(value, list) and value and all(_finite(c) for c in value):
-        return [float(c) for c in value]
-    raise _Bad("a number or a non-empty list of numbers (one per contact node, along t)")
-
-
-STATUSES = ("free", "stuck", "slip")
-
-
-def _contact_rules(value):
-    what = "a list of tables {from = s0, to = s1, status = 'free'|'stuck'|'slip'[, gamma = 1|-1]}"
-    if not isinstance(value, list):
-        raise _Bad(what)
-    out = []
-    for i, rule in enumerate(value):
-        try:
-            if not isinstance(rule, dict) or not {"from", "to", "status"} <= set(rule) or not \
-                    set(rule) <= {"from", "to", "status", "gamma"}:
-                raise _Bad(what)
-            lo, hi = _number()(rule["from"]), _number()(rule["to"])
-            if lo > hi:
-                raise _Bad(f"from <= to (got from = {lo:g}, to = {hi:g})")
-            status = _choice(*STATUSES)(rule["status"])
-            if "gamma" in rule and status != "slip":
-                raise _Bad("gamma only in a rule with status = 'slip'")
-            out.append({"from": lo, "to": hi, "status": status,
-                        "gamma": _gamma(rule.get("gamma", 1))})
-        except _Bad as bad:
-            raise _Bad(f"rule {i}: {bad}") from None
-    return out
-
-
-POSITIVE = _number(0.0, lo_open=True)
-
-SCHEMA: dict[str, dict[str, Key]] = {
+SCHEMA: dict[str, dict[str, c.Key]] = {
     "geometry": {
-        "shape": Key(_choice(*SHAPES), REQUIRED, "the body: " + ", ".join(SHAPES)),
-        "side": Key(POSITIVE, 1.0, "square: side length"),
-        "width": Key(POSITIVE, REQUIRED, "rectangle: width"),
-        "height": Key(POSITIVE, REQUIRED, "rectangle, parallelogram: height H"),
-        "base": Key(POSITIVE, REQUIRED, "parallelogram: base length L (the bottom edge)"),
-        "offset": Key(_number(), REQUIRED, "parallelogram: signed shift L' of the top edge"),
-        "vertices": Key(_points, REQUIRED, "polygon: [[x, y], ...]"),
-        "edge_names": Key(_string_list, None, "polygon: name of edge i (vertex i -> i+1)"),
-        "nodes": Key(_points, REQUIRED, "mesh: node coordinates [[x, y], ...]"),
-        "triangles": Key(_index_rows((3,)), None, "mesh: triangles [[a, b, c], ...]"),
-        "quads": Key(_index_rows((4,)), None, "mesh: quadrilaterals [[a, b, c, d], ...]"),
-        "edges": Key(_edge_table, REQUIRED, "mesh: named boundary edges {name = [[a, b], ...]}"),
-        "file": Key(_path, REQUIRED, "file: a gmsh .msh mesh or .geo script, relative to the "
+        "shape": c.Key(c.choice(*SHAPES), c.REQUIRED, "the body: " + ", ".join(SHAPES)),
+        "side": c.Key(POSITIVE, 1.0, "square: side length"),
+        "width": c.Key(POSITIVE, c.REQUIRED, "rectangle: width"),
+        "height": c.Key(POSITIVE, c.REQUIRED, "rectangle, parallelogram: height H"),
+        "base": c.Key(POSITIVE, c.REQUIRED, "parallelogram: base length L (the bottom edge)"),
+        "offset": c.Key(c.number(), c.REQUIRED, "parallelogram: signed shift L' of the top edge"),
+        "vertices": c.Key(c.points, c.REQUIRED, "polygon: [[x, y], ...]"),
+        "edge_names": c.Key(c.string_list, None, "polygon: name of edge i (vertex i -> i+1)"),
+        "nodes": c.Key(c.points, c.REQUIRED, "mesh: node coordinates [[x, y], ...]"),
+        "triangles": c.Key(c.index_rows((3,)), None, "mesh: triangles [[a, b, c], ...]"),
+        "quads": c.Key(c.index_rows((4,)), None, "mesh: quadrilaterals [[a, b, c, d], ...]"),
+        "edges": c.Key(c.edge_table, c.REQUIRED, "mesh: named boundary edges {name = [[a, b], ...]}"),
+        "file": c.Key(c.path, c.REQUIRED, "file: a gmsh .msh mesh or .geo script, relative to the "
                     "case file; boundary edges are its named physical curves"),
-        "domain": Key(_names, None, "file: physical surface(s) of the body [every surface]"),
+        "domain": c.Key(c.names, None, "file: physical surface(s) of the body [every surface]"),
     },
     "boundary": {
-        "contact": Key(_names, ["bottom"], "edges of Gamma_C (one straight segment)"),
-        "dirichlet": Key(_names, ["top"], "clamped edges Gamma_D (at least one)"),
+        "contact": c.Key(c.names, ["bottom"], "edges of Gamma_C (one straight segment)"),
+        "dirichlet": c.Key(c.names, ["top"], "clamped edges Gamma_D (at least one)"),
     },
     "material": {
-        "E": Key(POSITIVE, 1.0, "Young modulus (the eigenvalues do not depend on it)"),
-        "nu": Key(_number(0.0, 0.5, hi_open=True), 0.3, "Poisson ratio in [0, 0.5)"),
+        "E": c.Key(POSITIVE, 1.0, "Young modulus (the eigenvalues do not depend on it)"),
+        "nu": c.Key(c.number(0.0, 0.5, hi_open=True), 0.3, "Poisson ratio in [0, 0.5)"),
     },
     "mesh": {
-        "element": Key(_choice(*ELEMENTS), "P1", "finite element: " + ", ".join(ELEMENTS)),
-        "size": Key(POSITIVE, REQUIRED, "target element size h (gmsh shapes)"),
-        "structured": Key(_boolean, False, "transfinite mesh (4-vertex shapes only)"),
-        "grading": Key(_number(0.0, 1.0, lo_open=True), None,
+        "element": c.Key(c.choice(*ELEMENTS), "P1", "finite element: " + ", ".join(ELEMENTS)),
+        "size": c.Key(POSITIVE, c.REQUIRED, "target element size h (gmsh shapes)"),
+        "structured": c.Key(c.boolean, False, "transfinite mesh (4-vertex shapes only)"),
+        "grading": c.Key(c.number(0.0, 1.0, lo_open=True), None,
                        "size factor g in (0, 1] at the ends of Gamma_C"),
     },
     "solve": {
-        "method": Key(_choice(*METHODS), "auto", "eigen solver: " + ", ".join(METHODS)),
-        "backend": Key(_choice(*BACKENDS), "auto",
+        "method": c.Key(c.choice(*METHODS), "auto", "eigen solver: " + ", ".join(METHODS)),
+        "backend": c.Key(c.choice(*BACKENDS), "auto",
                        "sparse linear solver: auto (the fastest available), scipy, pardiso"),
-        "count": Key(_integer(1, 1000), 1, "number of lowest positive critical coefficients"),
-        "shift": Key(_number(-1e6, 1e6), 0.0, "look for eigenvalues nearest this friction "
+        "count": c.Key(c.integer(1, 1000), 1, "number of lowest positive critical coefficients"),
+        "shift": c.Key(c.number(-1e6, 1e6), 0.0, "look for eigenvalues nearest this friction "
                      "value (|alpha| above 1e6 counts as infinite)"),
-        "gamma": Key(_gamma, 1, "slip sign of every contact node (+1 or -1)"),
-        "tol": Key(_number(0.0, 1e-2), 0.0, "ARPACK relative tolerance (0: machine precision)"),
-        "maxiter": Key(_integer(1, 10**7), None, "ARPACK iteration cap (default: ARPACK's)"),
-        "real_tol": Key(_number(0.0, 1e-2), 1e-8, "|Im a| <= real_tol |a| counts as real"),
+        "gamma": c.Key(c.gamma, 1, "slip sign of every contact node (+1 or -1)"),
+        "tol": c.Key(c.number(0.0, 1e-2), 0.0, "ARPACK relative tolerance (0: machine precision)"),
+        "maxiter": c.Key(c.integer(1, 10**7), None, "ARPACK iteration cap (default: ARPACK's)"),
+        "real_tol": c.Key(c.number(0.0, 1e-2), 1e-8, "|Im a| <= real_tol |a| counts as real"),
     },
     "load": {
-        "friction": Key(_number(0.0), None, "friction coefficient of the static problem (2.8)"),
-        "traction": Key(_table_of(_vector, "[tx, ty]"), None,
+        "friction": c.Key(c.number(0.0), None, "friction coefficient of the static problem (2.8)"),
+        "traction": c.Key(c.table_of(c.vector, "[tx, ty]"), None,
                         "constant traction on traction-free edges {name = [tx, ty]}"),
-        "body_force": Key(_vector, None, "body force [fx, fy] (force per unit area)"),
-        "points": Key(_point_forces, None,
+        "body_force": c.Key(c.vector, None, "body force [fx, fy] (force per unit area)"),
+        "points": c.Key(c.point_forces, None,
                       "point forces [{node = i or at = [x, y], force = [fx, fy]}, ...]"),
-        "displacement": Key(_table_of(_displacement, "[ux, uy] or [[a0, ax, ay], [b0, bx, by]]"),
+        "displacement": c.Key(c.table_of(c.displacement, "[ux, uy] or [[a0, ax, ay], [b0, bx, by]]"),
                             None, "prescribed displacement per Dirichlet edge (others: zero)"),
-        "reference": Key(_reference, 0.0, "reference tangential displacement u^r: one value or "
+        "reference": c.Key(c.reference, 0.0, "reference tangential displacement u^r: one value or "
                          "one per contact node, sorted along t"),
     },
     "contact": {
-        "source": Key(_choice("rules", "coulomb"), "rules", "contact state of the eigenproblem: "
+        "source": c.Key(c.choice("rules", "coulomb"), "rules", "contact state of the eigenproblem: "
                       "'rules' below, or 'coulomb': the state of the static solution of [load]"),
-        "default": Key(_choice(*STATUSES), "slip", "status of contact nodes no rule covers"),
-        "rules": Key(_contact_rules, None, "[{from = s0, to = s1, status, gamma}]: status of the "
+        "default": c.Key(c.choice(*c.STATUSES), "slip", "status of contact nodes no rule covers"),
+        "rules": c.Key(c.contact_rules, None, "[{from = s0, to = s1, status, gamma}]: status of the "
                      "contact nodes at arc length s in [s0, s1] along t (later rules win)"),
     },
     "output": {
-        "file": Key(_path, None, "HDF5 result file (default: <case name>.h5)"),
-        "modes": Key(_boolean, True, "store the eigenfunctions of the critical eigenvalues"),
+        "file": c.Key(c.path, None, "HDF5 result file (default: <case name>.h5)"),
+        "modes": c.Key(c.boolean, True, "store the eigenfunctions of the critical eigenvalues"),
     },
 }
 
-TOP_LEVEL = {"title": Key(_string, None, "a title for tables and plots")}
+TOP_LEVEL = {"title": c.Key(c.string, None, "a title for tables and plots")}
 
 SHAPE_KEYS = {
     "square": {"side"},
@@ -368,7 +143,7 @@ class Case:
         """The effective case (overrides applied) as TOML: re-running it gives the same run."""
         return tomli_w.dumps(self.raw)
 
-    def with_overrides(self, overrides: dict[str, Any] | None) -> "Case":
+    def with_overrides(self, overrides: dict[str, Any] | None) -> Case:
         """A new validated case with dotted-key ``overrides`` applied."""
         return from_dict(self.raw, source=self.source, name=self.name, text=self.text,
                          overrides=overrides)
@@ -464,7 +239,7 @@ def from_dict(raw: dict, *, source: str = "<dict>", name: str = "case", text: st
             dotted = f"{section}.{key}"
             if key in given:
                 values[key] = _check(spec, given[key], source, dotted)
-            elif spec.default is REQUIRED:
+            elif spec.default is c.REQUIRED:
                 raise CaseError(f"missing key ({spec.doc})", file=source, key=dotted)
             else:
                 values[key] = spec.default
@@ -483,10 +258,10 @@ def _active_keys(section: str, given: dict, source: str) -> set[str]:
     return keys
 
 
-def _check(spec: Key, value, source: str, dotted: str):
+def _check(spec: c.Key, value, source: str, dotted: str):
     try:
         return spec.check(value)
-    except _Bad as bad:
+    except c.Bad as bad:
         raise CaseError(f"got {value!r}; allowed: {bad}", file=source, key=dotted) from None
 
 
@@ -503,7 +278,7 @@ def _check_consistency(s: dict, source: str) -> None:
                             + " or ".join(family), file=source, key="mesh.element")
         for key in ("size", "structured", "grading"):
             if mesh.get(key) not in (None, False):
-                raise CaseError(f"does not apply to an inline mesh (shape = 'mesh')",
+                raise CaseError("does not apply to an inline mesh (shape = 'mesh')",
                                 file=source, key=f"mesh.{key}")
         names = set(geo["edges"])
     elif shape == "file":

@@ -1,0 +1,233 @@
+"""Value checks for the case schema: each takes a TOML value and returns it normalized, or
+raises :class:`Bad` whose text says what is allowed (the caller adds file, key and value)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of the schema: its check, its default (``REQUIRED`` if none) and its meaning."""
+
+    check: Callable[[Any], Any]
+    default: Any
+    doc: str
+
+
+REQUIRED = object()
+
+
+class Bad(ValueError):
+    """Raised by a check: the text says what is allowed."""
+
+
+def number(lo=-math.inf, hi=math.inf, *, lo_open=False, hi_open=False):
+    def check(value):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise Bad("a number")
+        value = float(value)
+        low_ok = value > lo if lo_open else value >= lo
+        high_ok = value < hi if hi_open else value <= hi
+        if not (math.isfinite(value) and low_ok and high_ok):
+            left = "(" if lo_open else "["
+            right = ")" if hi_open else "]"
+            raise Bad(f"a finite number in {left}{lo:g}, {hi:g}{right}")
+        return value
+
+    return check
+
+
+def integer(lo, hi):
+    def check(value):
+        if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+            raise Bad(f"an integer in [{lo}, {hi}]")
+        return value
+
+    return check
+
+
+def choice(*allowed):
+    def check(value):
+        if value not in allowed:
+            raise Bad("one of " + ", ".join(repr(a) for a in allowed))
+        return value
+
+    return check
+
+
+def boolean(value):
+    if not isinstance(value, bool):
+        raise Bad("true or false")
+    return value
+
+
+def string(value):
+    if not isinstance(value, str) or not value:
+        raise Bad("a non-empty string")
+    return value
+
+
+def path(value):
+    if not isinstance(value, str) or not value.strip() or "\x00" in value:
+        raise Bad("a file path (a non-empty string without NUL characters)")
+    return value
+
+
+def names(value):
+    if isinstance(value, str):
+        value = [value]
+    if not isinstance(value, list) or not value or not all(
+        isinstance(v, str) and v for v in value
+    ):
+        raise Bad("a non-empty list of edge names (strings)")
+    if len(set(value)) != len(value):
+        raise Bad("a list of distinct edge names")
+    return list(value)
+
+
+def points(value):
+    ok = isinstance(value, list) and len(value) >= 3 and all(
+        isinstance(p, list) and len(p) == 2
+        and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+                for c in p)
+        for p in value
+    )
+    if not ok:
+        raise Bad("a list of at least 3 points [x, y] with finite numbers")
+    return [[float(c) for c in p] for p in value]
+
+
+def index_rows(width):
+    def check(value):
+        ok = isinstance(value, list) and len(value) >= 1 and all(
+            isinstance(r, list) and len(r) in width
+            and all(isinstance(i, int) and not isinstance(i, bool) and i >= 0 for i in r)
+            for r in value
+        )
+        if not ok:
+            sizes = " or ".join(str(w) for w in width)
+            raise Bad(f"a non-empty list of rows of {sizes} node indices (integers >= 0)")
+        return value
+
+    return check
+
+
+def edge_table(value):
+    if not isinstance(value, dict) or not value:
+        raise Bad("a table: edge name = [[node, node], ...]")
+    out = {}
+    for name, rows in value.items():
+        try:
+            out[name] = index_rows((2,))(rows)
+        except Bad as bad:
+            raise Bad(f"for edge {name!r}: {bad}") from None
+    return out
+
+
+def string_list(value):
+    if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
+        raise Bad("a list of non-empty strings")
+    return list(value)
+
+
+def gamma(value):
+    if isinstance(value, bool) or value not in (1, -1):
+        raise Bad("1 or -1")
+    return int(value)
+
+
+def finite(c) -> bool:
+    return isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+
+
+def vector(value):
+    if not (isinstance(value, list) and len(value) == 2 and all(finite(c) for c in value)):
+        raise Bad("a vector [x, y] of 2 finite numbers")
+    return [float(c) for c in value]
+
+
+def table_of(check, what):
+    def table(value):
+        if not isinstance(value, dict) or not value:
+            raise Bad(f"a table: edge name = {what}")
+        out = {}
+        for name, entry in value.items():
+            try:
+                out[name] = check(entry)
+            except Bad as bad:
+                raise Bad(f"for edge {name!r}: {bad}") from None
+        return out
+
+    return table
+
+
+def displacement(value):
+    """[ux, uy] (constant) or [[a0, ax, ay], [b0, bx, by]]: u = (a0 + ax x + ay y, b0 + ...)."""
+    if isinstance(value, list) and len(value) == 2 and all(finite(c) for c in value):
+        return [[float(value[0]), 0.0, 0.0], [float(value[1]), 0.0, 0.0]]
+    if isinstance(value, list) and len(value) == 2 and all(
+            isinstance(r, list) and len(r) == 3 and all(finite(c) for c in r) for r in value):
+        return [[float(c) for c in r] for r in value]
+    raise Bad("[ux, uy] (constant) or [[a0, ax, ay], [b0, bx, by]] (ux = a0 + ax x + ay y, "
+               "uy = b0 + bx x + by y), finite numbers")
+
+
+def point_forces(value):
+    what = "a list of tables {node = i, force = [fx, fy]} or {at = [x, y], force = [fx, fy]}"
+    if not isinstance(value, list) or not value:
+        raise Bad(what)
+    out = []
+    for i, entry in enumerate(value):
+        ok = isinstance(entry, dict) and set(entry) in ({"node", "force"}, {"at", "force"})
+        try:
+            if not ok:
+                raise Bad(what)
+            force = vector(entry["force"])
+            if "node" in entry:
+                node = entry["node"]
+                if isinstance(node, bool) or not isinstance(node, int) or node < 0:
+                    raise Bad("node: a node index (integer >= 0)")
+                out.append({"node": node, "force": force})
+            else:
+                out.append({"at": vector(entry["at"]), "force": force})
+        except Bad as bad:
+            raise Bad(f"entry {i}: {bad}") from None
+    return out
+
+
+def reference(value):
+    if finite(value):
+        return float(value)
+    if isinstance(value, list) and value and all(finite(c) for c in value):
+        return [float(c) for c in value]
+    raise Bad("a number or a non-empty list of numbers (one per contact node, along t)")
+
+
+STATUSES = ("free", "stuck", "slip")
+
+
+def contact_rules(value):
+    what = "a list of tables {from = s0, to = s1, status = 'free'|'stuck'|'slip'[, gamma = 1|-1]}"
+    if not isinstance(value, list):
+        raise Bad(what)
+    out = []
+    for i, rule in enumerate(value):
+        try:
+            if not isinstance(rule, dict) or not {"from", "to", "status"} <= set(rule) or not \
+                    set(rule) <= {"from", "to", "status", "gamma"}:
+                raise Bad(what)
+            lo, hi = number()(rule["from"]), number()(rule["to"])
+            if lo > hi:
+                raise Bad(f"from <= to (got from = {lo:g}, to = {hi:g})")
+            status = choice(*STATUSES)(rule["status"])
+            if "gamma" in rule and status != "slip":
+                raise Bad("gamma only in a rule with status = 'slip'")
+            out.append({"from": lo, "to": hi, "status": status,
+                        "gamma": gamma(rule.get("gamma", 1))})
+        except Bad as bad:
+            raise Bad(f"rule {i}: {bad}") from None
+    return out
