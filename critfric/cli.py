@@ -165,6 +165,10 @@ def sweep(
                                "for another case or grid."),
     as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
     plot: bool = typer.Option(False, "--plot", help="Also write the figures (PNG)."),
+    max_dofs: Optional[int] = typer.Option(None, "--max-dofs", min=1, help="Refuse meshes above "
+                                           "this many DOFs [default: what memory allows]."),
+    trust_geo: bool = typer.Option(False, "--trust-geo", help="Mesh a .geo script even if it "
+                                   "can run programs or touch other files."),
 ) -> None:
     """Sweep nu, mesh size and element; resumable; h -> 0 limits by Richardson extrapolation."""
     from .plots import plot_file
@@ -174,7 +178,8 @@ def sweep(
     try:
         loaded = load_case(case or "unit-square",
                            overrides={"mesh.grading": grading, "solve.count": count})
-        grid = make_grid(loaded, nu=nu, size=size, element=element)
+        grid = make_grid(loaded, nu=nu, size=size, element=element, max_dofs=max_dofs,
+                         trust_geo=trust_geo)
         for note in grid.notes:
             _err(f"critfric: note: {note}")
         out = output or sweep_output(loaded)
@@ -185,8 +190,9 @@ def sweep(
                 on_point(row, done, total)
                 interrupted.check()
 
-            result = run_sweep(loaded, grid, output=out, jobs=jobs,
-                               scheduler=scheduler, force=force, on_point=point_done)
+            result = run_sweep(loaded, grid, output=out, jobs=jobs, scheduler=scheduler,
+                               force=force, on_point=point_done, max_dofs=max_dofs,
+                               trust_geo=trust_geo)
         pngs = plot_file(result.path) if plot else []
     except CritfricError as exc:
         _fail(exc)

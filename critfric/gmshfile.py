@@ -317,16 +317,26 @@ def mesh_geo(path: Path, *, element: str, size: float | None = None,
     return _build(points, cells, edges, element, path)
 
 
-def file_mesh(case, *, max_dofs: int | None = None, trust_geo: bool = False) -> Mesh:
-    """The mesh of a ``shape = "file"`` case, after the resource guard."""
+def check_file(case, *, trust_geo: bool = False) -> Path:
+    """The geometry file of a case, refused before any meshing if missing or, for a .geo
+    script that can reach outside, unless ``trust_geo``."""
     from .case import geometry_file
-    from .guards import check_dofs
 
     path = geometry_file(case)
-    element, domain = case.mesh["element"], case.geometry["domain"]
     if not path.is_file():
         raise CaseError(f"got {case.geometry['file']!r}: no such file ({path}); allowed: an "
                         "existing gmsh .msh or .geo file", file=case.source, key="geometry.file")
+    if path.suffix.lower() == ".geo" and not trust_geo:
+        check_geo(path, _read_text(path))
+    return path
+
+
+def file_mesh(case, *, max_dofs: int | None = None, trust_geo: bool = False) -> Mesh:
+    """The mesh of a ``shape = "file"`` case, after the resource guard."""
+    from .guards import check_dofs
+
+    path = check_file(case, trust_geo=trust_geo)
+    element, domain = case.mesh["element"], case.geometry["domain"]
     if path.suffix.lower() == ".msh":
         mesh = read_msh(path, element=element, domain=domain)
         check_dofs(2.0 * mesh.n_nodes, element=element, what=f"the mesh {path.name}",

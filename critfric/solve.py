@@ -20,7 +20,7 @@ from .case import Case, load_case
 from .contact import ContactSystem, contact_system
 from .errors import CaseError
 from .geometry import parallelogram, polygon, rectangle, validate
-from .gmshfile import file_mesh
+from .gmshfile import check_file, file_mesh
 from .guards import check_dofs, check_held, polygon_footprint
 from .mesh import Mesh, build_mesh, inline_mesh
 from .static import contact_state
@@ -110,6 +110,26 @@ def geometry_polygon(case: Case):
     return validate(poly)
 
 
+def _checked_polygon(case: Case, max_dofs: int | None):
+    poly = geometry_polygon(case)
+    m = case.mesh
+    footprint = polygon_footprint(poly.vertices)
+    check_dofs(footprint.dofs(m["size"], m["element"]), element=m["element"],
+               what=f"mesh.size = {m['size']:g}", source=case.source, footprint=footprint,
+               max_dofs=max_dofs)
+    return poly
+
+
+def preflight(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False) -> None:
+    """The checks of :func:`make_mesh` that need no mesh (geometry, resource estimate, .geo
+    safety): a sweep runs them for every mesh of its grid before it starts."""
+    shape = case.geometry["shape"]
+    if shape == "file":
+        check_file(case, trust_geo=trust_geo)
+    elif shape != "mesh":
+        _checked_polygon(case, max_dofs)
+
+
 def make_mesh(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False) -> Mesh:
     """The mesh of a case; gmsh shapes pass the resource guard first (:mod:`.guards`)."""
     g, m = case.geometry, case.mesh
@@ -119,11 +139,7 @@ def make_mesh(case: Case, *, max_dofs: int | None = None, trust_geo: bool = Fals
                            g["edges"], m["element"])
     if g["shape"] == "file":
         return file_mesh(case, max_dofs=max_dofs, trust_geo=trust_geo)
-    poly = geometry_polygon(case)
-    footprint = polygon_footprint(poly.vertices)
-    check_dofs(footprint.dofs(m["size"], m["element"]), element=m["element"],
-               what=f"mesh.size = {m['size']:g}", source=case.source, footprint=footprint,
-               max_dofs=max_dofs)
+    poly = _checked_polygon(case, max_dofs)
     return build_mesh(poly, size=m["size"], element=m["element"],
                       structured=m["structured"], grading=m["grading"],
                       contact=case.boundary["contact"])

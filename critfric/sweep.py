@@ -26,7 +26,7 @@ import numpy as np
 from .case import ELEMENTS, Case, from_dict
 from .errors import CaseError
 from .extrapolate import Limit, limits_of
-from .solve import Prepared, prepare, solve_prepared
+from .solve import Prepared, preflight, prepare, solve_prepared
 
 NU_POINTS = 11  # points of a range A:B given without N
 NU_GAP = 1e-3  # a range reaching nu = 1/2 stops at 1/2 - min(NU_GAP, step / 2)
@@ -133,17 +133,20 @@ def parse_elements(text: str) -> list[str]:
 
 
 def make_grid(case: Case, *, nu: str | None = None, size: str | None = None,
-              element: str | None = None) -> Grid:
+              element: str | None = None, max_dofs: int | None = None,
+              trust_geo: bool = False) -> Grid:
     """The grid of a sweep of ``case``; options left out take the case's own value.
 
-    Every (size, element) is validated against the case here, before any work is done.
+    Every (size, element) is validated against the case here, before any work is done, with
+    the checks of a solve that need no mesh (resource estimate, .geo safety).
     """
     nus, notes = parse_nu(nu) if nu is not None else ([case.material["nu"]], [])
     sizes = parse_sizes(size) if size is not None else [case.mesh["size"]]
     elements = parse_elements(element) if element is not None else [case.mesh["element"]]
     for s in sizes:
         for el in elements:
-            case.with_overrides(_overrides(Point(nus[0], s, el)))
+            preflight(case.with_overrides(_overrides(Point(nus[0], s, el))),
+                      max_dofs=max_dofs, trust_geo=trust_geo)
     return Grid(nus, sizes, elements, notes)
 
 
@@ -156,21 +159,24 @@ _CACHE: OrderedDict[tuple, Prepared] = OrderedDict()
 _CACHE_LOCK = threading.Lock()  # Dask runs tasks in threads; gmsh is not thread-safe
 
 
-def worker_spec(case: Case, *, reuse: bool = True) -> dict:
+def worker_spec(case: Case, *, reuse: bool = True, max_dofs: int | None = None,
+                trust_geo: bool = False) -> dict:
     """What a worker needs to rebuild the case of any point (plain, picklable data)."""
     ident = hashlib.sha1(case.to_toml().encode()).hexdigest()
     return {"raw": case.raw, "source": case.source, "name": case.name, "text": case.text,
-            "count": case.solve["count"], "reuse": reuse, "id": ident}
+            "count": case.solve["count"], "reuse": reuse, "id": ident,
+            "guards": {"max_dofs": max_dofs, "trust_geo": trust_geo}}
 
 
 def _prepared(spec: dict, case: Case, point: Point) -> Prepared:
+    guards = spec.get("guards", {})
     if not spec["reuse"]:
         with _CACHE_LOCK:
-            return prepare(case)
+            return prepare(case, **guards)
     key = (spec["id"], point.size, point.element)
     with _CACHE_LOCK:
         if key not in _CACHE:
-            _CACHE[key] = prepare(case)
+            _CACHE[key] = prepare(case, **guards)
             while len(_CACHE) > CACHE_SIZE:
                 _CACHE.popitem(last=False)
         _CACHE.move_to_end(key)
@@ -241,7 +247,8 @@ def default_jobs() -> int:
 
 def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = None,
               scheduler: str | None = None, force: bool = False, reuse: bool = True,
-              on_point: Callable[[dict, int, int], None] | None = None) -> Sweep:
+              on_point: Callable[[dict, int, int], None] | None = None,
+              max_dofs: int | None = None, trust_geo: bool = False) -> Sweep:
     """Run (or resume) a sweep into ``output``; return every point and the h -> 0 limits.
 
     jobs      : local worker processes (default: all cores); 1 runs in this process.
@@ -250,6 +257,7 @@ def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = 
     reuse     : reuse meshes and assemblies across nu (off only to measure its benefit).
     on_point  : called as on_point(row, done, total) after each point is written, and once
                 with row None before the first (done: the points already in the file).
+    max_dofs, trust_geo : the guards of :func:`critfric.solve.prepare`, for every point.
     """
     from . import sweepfile, workers
 
@@ -263,7 +271,7 @@ def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = 
         finished = len(points) - len(todo)
         if on_point is not None:
             on_point(None, finished, len(points))
-        spec = worker_spec(case, reuse=reuse)
+        spec = worker_spec(case, reuse=reuse, max_dofs=max_dofs, trust_geo=trust_geo)
         jobs = max(1, min(jobs or default_jobs(), len(todo)))
         if not todo:
             stream = iter(())
