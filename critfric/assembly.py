@@ -65,7 +65,8 @@ def cell_geometry(mesh: Mesh, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
 def assemble_elasticity(mesh: Mesh) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     """CSR matrices ``(K_lam, K_G)`` over all 2 * n_nodes DOFs with ``K = lam K_lam + G K_G``."""
     element = get_element(mesh.element)
-    _jacobians(mesh, element.shape(element.doflocs)[1])  # also reject cells inverted at nodes
+    if element.name != "P1":  # also reject cells inverted at nodes (P1: J is constant)
+        _jacobians(mesh, element.shape(element.doflocs)[1])
     xi, w = element.quadrature()
     _, det, grads = cell_geometry(mesh, xi)
     wdet = det * w  # (n_cells, n_qp)
@@ -79,22 +80,34 @@ def assemble_elasticity(mesh: Mesh) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     shape = (n_dofs, n_dofs)
     # K_lam[(a,k),(b,l)] = int d_k N_a d_l N_b; index 2a+k of g is d_k N_a
     g = grads.reshape(n_cells, -1, 2 * nl)
-    lam = np.matmul(g.transpose(0, 2, 1) * wdet[:, None, :], g)
-    lap = np.einsum("cq,cqai,cqbi->cab", wdet, grads, grads, optimize=True)
+    local = np.matmul(g.transpose(0, 2, 1) * wdet[:, None, :], g)
     del g, grads
-    # K_G[(a,k),(b,l)] = int (delta_kl grad N_a . grad N_b + d_l N_a d_k N_b)
-    # Both parts share one sparsity pattern: one COO scatter of K_lam + i K_G, then split.
-    local = np.empty((n_cells, nl, 2, nl, 2), dtype=np.complex128)
-    local.real = lam.reshape(local.shape)
-    local.imag = lam.reshape(local.shape).transpose(0, 1, 4, 3, 2)
-    del lam
-    local.imag[:, :, 0, :, 0] += lap
-    local.imag[:, :, 1, :, 1] += lap
-    K = sp.coo_matrix((local.ravel(), (rows, cols)), shape=shape).tocsr()
+    K_lam = sp.coo_matrix((local.ravel(), (rows, cols)), shape=shape).tocsr()
     del local, rows, cols
-    K_lam = sp.csr_matrix((K.data.real.copy(), K.indices.copy(), K.indptr.copy()), shape=shape)
-    K_G = sp.csr_matrix((K.data.imag.copy(), K.indices, K.indptr), shape=shape)
-    return K_lam, K_G
+    # K_G[(a,k),(b,l)] = int (delta_kl grad N_a . grad N_b + d_l N_a d_k N_b): node block by
+    # node block, K_G = B^T + tr(B) I for the 2 x 2 block B of K_lam (same sparsity)
+    return K_lam, _shear_part(K_lam)
+
+
+def _shear_part(K_lam: sp.csr_matrix) -> sp.csr_matrix:
+    """K_G from K_lam: every 2 x 2 node block B becomes B^T + tr(B) I.
+
+    Rows 2i and 2i+1 of an assembled K_lam hold the same columns, and (sorted) the two
+    columns of a node are adjacent: the four entries of a block sit at q, q + 1 (row 2i)
+    and q + d, q + d + 1 (row 2i + 1, d = its offset from row 2i).
+    """
+    K_lam.sort_indices()
+    ip, cols, B = K_lam.indptr, K_lam.indices, K_lam.data
+    length = np.diff(ip)
+    if not (np.array_equal(length[0::2], length[1::2]) and np.all(length % 2 == 0)):
+        raise RuntimeError("internal: K_lam is not made of full 2 x 2 node blocks")
+    row = np.repeat(np.arange(len(length)), length)
+    q00 = np.flatnonzero((row % 2 == 0) & (cols % 2 == 0))
+    q10 = q00 + length[row[q00]]
+    b00, b01, b10, b11 = B[q00], B[q00 + 1], B[q10], B[q10 + 1]
+    G = np.empty_like(B)
+    G[q00], G[q00 + 1], G[q10], G[q10 + 1] = 2 * b00 + b11, b10, b01, b00 + 2 * b11
+    return sp.csr_matrix((G, cols.copy(), ip.copy()), shape=K_lam.shape)
 
 
 def cell_strain(mesh: Mesh, u: np.ndarray, xi: np.ndarray) -> np.ndarray:
