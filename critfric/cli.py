@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from typing import Optional
+from typing import Annotated, Optional
 
 import typer
 
@@ -26,6 +26,12 @@ app = typer.Typer(
     pretty_exceptions_show_locals=False,
     help="Critical friction coefficients of Coulomb frictional contact (plane strain).",
 )
+
+
+MaxDofs = Annotated[Optional[int], typer.Option(
+    "--max-dofs", min=1, help="Refuse meshes above this many DOFs [default: what memory allows].")]
+TrustGeo = Annotated[bool, typer.Option(
+    "--trust-geo", help="Mesh a .geo script even if it can run programs or touch other files.")]
 
 
 def _err(message: str) -> None:
@@ -71,10 +77,8 @@ def solve(
     output: Optional[Path] = typer.Option(None, "--output", "-o", help="HDF5 result file."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing result file."),
     as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
-    max_dofs: Optional[int] = typer.Option(None, "--max-dofs", min=1, help="Refuse meshes above "
-                                           "this many DOFs (default: what memory allows)."),
-    trust_geo: bool = typer.Option(False, "--trust-geo", help="Mesh a .geo script even if it "
-                                   "can run programs or read or write files."),
+    max_dofs: MaxDofs = None,
+    trust_geo: TrustGeo = False,
     plot: bool = typer.Option(False, "--plot", help="Also write the figures (PNG)."),
 ) -> None:
     """Compute the critical friction coefficients of a case and write an HDF5 result."""
@@ -165,10 +169,8 @@ def sweep(
                                "for another case or grid."),
     as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
     plot: bool = typer.Option(False, "--plot", help="Also write the figures (PNG)."),
-    max_dofs: Optional[int] = typer.Option(None, "--max-dofs", min=1, help="Refuse meshes above "
-                                           "this many DOFs [default: what memory allows]."),
-    trust_geo: bool = typer.Option(False, "--trust-geo", help="Mesh a .geo script even if it "
-                                   "can run programs or touch other files."),
+    max_dofs: MaxDofs = None,
+    trust_geo: TrustGeo = False,
 ) -> None:
     """Sweep nu, mesh size and element; resumable; h -> 0 limits by Richardson extrapolation."""
     from .plots import plot_file
