@@ -66,6 +66,7 @@ def child_pipeline(h: float, backend: str, out: str) -> dict:
 
 def child_factor(h: float, backend: str) -> dict:
     import numpy as np
+
     import critfric
     from critfric.assembly import lame
     from critfric.eigen import _fill_order
@@ -82,6 +83,7 @@ def child_plain(h: float) -> dict:
     """A plain SciPy script: default splu, dense contact blocks of K^-1, Remark 3.2."""
     import numpy as np
     import scipy.sparse.linalg as spla
+
     import critfric
     from critfric.assembly import lame
     prep = critfric.prepare(_case(h, "scipy"), max_dofs=10**9)

@@ -175,7 +175,8 @@ def sweep(
     """Sweep nu, mesh size and element; resumable; h -> 0 limits by Richardson extrapolation."""
     from .plots import plot_file
     from .progress import progress_bar
-    from .sweep import default_output as sweep_output, make_grid, report, run_sweep
+    from .sweep import default_output as sweep_output
+    from .sweep import make_grid, report, run_sweep
 
     try:
         loaded = load_case(case or "unit-square",
@@ -285,7 +286,8 @@ def verify(
     """Check the explicit non-uniqueness example of section 5 at the critical coefficient:
     a whole branch u + delta Phi of solutions. Exit code 1 if the check fails."""
     from .staticplots import branch_plot, default_plot
-    from .verify import report, verify as run_verify
+    from .verify import report
+    from .verify import verify as run_verify
 
     given = {"nu": nu, "element": element, "size": size}
     try:

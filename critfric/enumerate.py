@@ -345,7 +345,7 @@ def solutions_of_case(case, frictions, *, prepared=None) -> list[Enumeration]:
 
 def report(sweep: list[Enumeration]) -> str:
     """A plain-text table of a sweep: per friction value, its solutions and branches."""
-    f4 = lambda a: "[" + ", ".join(f"{v:.6g}" for v in a) + "]"  # noqa: E731
+    f4 = lambda a: "[" + ", ".join(f"{v:.6g}" for v in a) + "]"
     lines = [f"{'friction':>12} {'count':>5} {'branch':>6}  solutions: status, U_t, X (along t)"]
     for e in sweep:
         lines.append(f"{e.friction:>12.8g} {e.count:>5d} {'yes' if e.branch else 'no':>6}")

@@ -9,8 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from critfric.errors import CaseError, CritfricError, SolverError
-from critfric.geometry import (Polygon, collinear_run, mesh_size_estimate, positive_number,
-                               validate)
+from critfric.geometry import Polygon, collinear_run, mesh_size_estimate, positive_number, validate
 
 
 @dataclass(frozen=True)

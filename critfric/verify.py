@@ -34,7 +34,8 @@ import numpy as np
 from . import eigen
 from .assembly import lame
 from .case import Case, load_case
-from .coulomb import Complementarity, Condensed, solve as coulomb_solve, violations
+from .coulomb import Complementarity, Condensed, violations
+from .coulomb import solve as coulomb_solve
 from .eigen import ContactState
 from .errors import CaseError, SolverError
 from .static import StaticProblem, boundary_facets, build, facet_load, facets_in

@@ -203,7 +203,7 @@ def run_dask(client, fn: Callable, spec: dict, points: list) -> Iterator[tuple]:
             point = futures.pop(fut)
             try:
                 row = fut.result()
-            except Exception as exc:  # noqa: BLE001 - a lost task is a failed point
+            except Exception as exc:
                 row = empty_row(point, f"failed: {type(exc).__name__}: {exc}")
             yield point, row
     finally:

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import pytest
+from helpers import square_case
 
 import critfric
 from critfric.case import load_case, loads_case, shipped_cases
 from critfric.errors import CaseError
-
-from helpers import CASES, square_case
 
 GOOD = square_case(size=0.2)
 

@@ -7,11 +7,10 @@ import json
 import h5py
 import numpy as np
 import pytest
+from helpers import CASES, four_triangles_alpha, one_triangle_alpha, square_case
 from typer.testing import CliRunner
 
 from critfric.cli import app
-
-from helpers import CASES, four_triangles_alpha, one_triangle_alpha, square_case
 
 runner = CliRunner()
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import CASES, square_case
 
 import critfric
 from critfric import coulomb, static, verify
@@ -11,8 +12,6 @@ from critfric.case import loads_case
 from critfric.errors import SolverError
 from critfric.linsolve import factorize
 from critfric.solve import prepare
-
-from helpers import CASES, square_case
 
 MIXED = square_case(size=0.05) + """
 [load]

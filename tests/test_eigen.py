@@ -5,14 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg as la
+from helpers import CASES, four_triangles_alpha, square_case
 
 import critfric
 from critfric import eigen
 from critfric.assembly import lame
 from critfric.case import loads_case
 from critfric.solve import prepare
-
-from helpers import CASES, four_triangles_alpha, square_case
 
 
 def _solve(text, **over):

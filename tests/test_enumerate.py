@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import CASES, one_triangle_alpha, square_case
 
 import critfric
 from critfric import coulomb, static, verify
@@ -11,8 +12,6 @@ from critfric.assembly import lame
 from critfric.case import loads_case
 from critfric.enumerate import Enumerator, enumerate_solutions, parse_frictions
 from critfric.errors import CaseError, SolverError
-
-from helpers import CASES, one_triangle_alpha, square_case
 
 
 @pytest.fixture(scope="module")

@@ -20,8 +20,15 @@ from critfric.case import loads_case
 from critfric.cli import app
 from critfric.errors import CaseError
 from critfric.geometry import polygon
-from critfric.guards import (Footprint, check_dofs, dofs_that_fit, interrupt_guard,
-                             memory_estimate, output_lock, polygon_footprint)
+from critfric.guards import (
+    Footprint,
+    check_dofs,
+    dofs_that_fit,
+    interrupt_guard,
+    memory_estimate,
+    output_lock,
+    polygon_footprint,
+)
 from critfric.mesh import build_mesh
 from critfric.results import atomic_h5
 

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 import scipy.linalg as la
 import scipy.sparse as sp
+from helpers import square_case
 from typer.testing import CliRunner
 
 import critfric
@@ -19,8 +20,6 @@ from critfric.contact import FREE, SLIP, STUCK
 from critfric.eigen import ContactState
 from critfric.errors import CaseError, SolverError
 from critfric.solve import prepare
-
-from helpers import square_case
 
 AVAILABLE = linsolve.available_backends()
 

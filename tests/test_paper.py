@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import (
+    CASES,
+    four_triangles_alpha,
+    one_triangle_alpha,
+    paper_one_triangle_K,
+    square_case,
+)
 
 import critfric
 from critfric.assembly import assemble_elasticity, lame
 from critfric.solve import make_mesh, prepare
-
-from helpers import (CASES, four_triangles_alpha, one_triangle_alpha, paper_one_triangle_K,
-                     square_case)
 
 
 @pytest.mark.parametrize("nu", [0.1, 0.3, 0.45])
@@ -41,7 +45,7 @@ def test_four_triangles_stiffness_is_the_papers():
     K = (lam * K_lam + G * K_G).toarray()
     A, B, O = 0, 1, 4
     dofs = [2 * A + 1, 2 * B + 1, 2 * O, 2 * A, 2 * B, 2 * O + 1]
-    l = lam  # noqa: E741
+    l = lam
     paper = 0.5 * np.array([
         [l + 3 * G, (l + G) / 2, -(l + G), l + G, (-l + G) / 2, -(l + 3 * G)],
         [(l + G) / 2, l + 3 * G, l + G, (l - G) / 2, -(l + G), -(l + 3 * G)],

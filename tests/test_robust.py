@@ -10,12 +10,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import CASES, four_triangles_alpha, one_triangle_alpha
 
 from critfric import eigen, loads_case, solve_case, write_result
 from critfric.errors import SolverError
 from critfric.results import read_summary
-
-from helpers import CASES, four_triangles_alpha, one_triangle_alpha
 
 REPO = Path(__file__).resolve().parent.parent
 

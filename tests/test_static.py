@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import square_case
 
 import critfric
 from critfric import coulomb, eigen, static
@@ -12,8 +13,6 @@ from critfric.case import loads_case
 from critfric.contact import FREE, SLIP, STUCK
 from critfric.errors import CaseError
 from critfric.solve import prepare
-
-from helpers import square_case
 
 SQUARE = square_case(size=0.25)
 

@@ -14,6 +14,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from helpers import CASES, four_triangles_alpha, square_case
 
 import critfric
 from critfric.errors import CaseError
@@ -21,8 +22,6 @@ from critfric.extrapolate import family_limit, limits_of, observed_order
 from critfric.sweep import Point, make_grid, parse_nu, run_sweep
 from critfric.sweepfile import read_sweep
 from critfric.workers import THREAD_VARS, make_chunks, run_local
-
-from helpers import CASES, four_triangles_alpha, square_case
 
 REPO = Path(__file__).resolve().parent.parent
 

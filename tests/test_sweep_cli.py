@@ -8,6 +8,7 @@ import h5py
 import meshio
 import numpy as np
 import pytest
+from helpers import CASES, four_triangles_alpha, square_case
 from matplotlib.image import imread
 from typer.testing import CliRunner
 
@@ -15,8 +16,6 @@ import critfric
 from critfric.assembly import cell_stress, lame, von_mises
 from critfric.cli import app
 from critfric.export import read_solve
-
-from helpers import CASES, four_triangles_alpha, square_case
 
 runner = CliRunner()
 

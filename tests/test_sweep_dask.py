@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import CASES, square_case
 
 import critfric
 from critfric import workers
 from critfric.errors import CaseError
 from critfric.sweep import make_grid, run_sweep
 from critfric.sweepfile import read_sweep
-
-from helpers import CASES, square_case
 
 distributed = pytest.importorskip("distributed")
 

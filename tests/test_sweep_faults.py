@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from helpers import CASES, square_case
 from typer.testing import CliRunner
 
 import critfric
@@ -20,8 +21,6 @@ from critfric.errors import CaseError
 from critfric.guards import output_lock
 from critfric.sweep import Point, empty_row, make_grid, run_sweep
 from critfric.sweepfile import append_point, open_sweep, read_sweep
-
-from helpers import CASES, square_case
 
 REPO = Path(__file__).resolve().parent.parent
 

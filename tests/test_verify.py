@@ -6,14 +6,13 @@ import json
 
 import numpy as np
 import pytest
+from helpers import CASES, four_triangles_alpha, one_triangle_alpha
 from typer.testing import CliRunner
 
 import critfric
 from critfric import verify
 from critfric.case import loads_case
 from critfric.cli import app
-
-from helpers import CASES, four_triangles_alpha, one_triangle_alpha
 
 runner = CliRunner()
 
@@ -75,7 +74,7 @@ def _leaning_mesh(element: str, rotation: float, n: int = 4) -> str:
            + (1 - a) * b * corners[3])
     c, s = np.cos(rotation), np.sin(rotation)
     pts = pts @ np.array([[c, s], [-s, c]])
-    k = lambda i, j: j * (n + 1) + i  # noqa: E731
+    k = lambda i, j: j * (n + 1) + i
     quads = [[k(i, j), k(i + 1, j), k(i + 1, j + 1), k(i, j + 1)]
              for j in range(n) for i in range(n)]
     triangles = [[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads]
