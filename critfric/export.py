@@ -21,6 +21,7 @@ import numpy as np
 from .assembly import cell_stress, lame, von_mises
 from .errors import CaseError
 from .mesh import Mesh
+from .results import file_attrs
 
 FORMATS = ("xdmf", "vtu")
 _MESHIO_CELL = {"P1": "triangle", "P2": "triangle6", "Q1": "quad", "Q2": "quad9"}
@@ -50,10 +51,7 @@ def read_solve(path: Path | str) -> SolveData:
     path = Path(path)
     try:
         with h5py.File(path, "r") as f:
-            if f.attrs.get("kind") != "solve":
-                raise CaseError("is not a critfric solve file (no kind = 'solve' attribute)",
-                                file=str(path))
-            attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
+            attrs = file_attrs(f, "solve", path)
             element = f["mesh/cells"].attrs["element"]
             element = element.decode() if isinstance(element, bytes) else str(element)
             edges = {name: g[()] for name, g in f["mesh/edges"].items()}

@@ -136,15 +136,21 @@ def write_result(result, path: Path | str, *, force: bool = False) -> Path:
     return atomic_h5(path, fill)
 
 
+def file_attrs(f: h5py.File, kind: str, path: Path) -> dict:
+    """The root attributes of a critfric file of ``kind`` ("solve", "sweep"), strings as str;
+    a file of another kind is a CaseError."""
+    if f.attrs.get("kind") != kind:
+        raise CaseError(f"is not a critfric {kind} file (no kind = '{kind}' attribute)",
+                        file=str(path))
+    return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
+
+
 def read_summary(path: Path | str) -> dict:
     """The JSON-style summary of a solve file (as ``critfric solve --json`` prints it)."""
     path = Path(path)
     try:
         with h5py.File(path, "r") as f:
-            a = f.attrs
-            if a.get("kind") != "solve":
-                raise CaseError("is not a critfric solve file (no kind = 'solve' attribute)",
-                                file=str(path))
+            a = file_attrs(f, "solve", path)
             alpha = f["eigen/alpha"][()]
             pos, neg = f["critical/positive"][()], f["critical/negative"][()]
             size = float(a["size"])

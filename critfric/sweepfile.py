@@ -36,7 +36,7 @@ import numpy as np
 
 from . import __version__
 from .errors import CaseError
-from .results import atomic_h5
+from .results import atomic_h5, file_attrs
 
 SCHEMA_VERSION = 1
 STR = h5py.string_dtype()
@@ -138,10 +138,7 @@ def read_sweep(path: Path) -> dict:
     path = Path(path)
     try:
         with h5py.File(path, "r") as f:
-            if f.attrs.get("kind") != "sweep":
-                raise CaseError("is not a critfric sweep file (no kind = 'sweep' attribute)",
-                                file=str(path))
-            attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
+            attrs = file_attrs(f, "sweep", path)
             g = f["points"]
             n = len(g["status"])
             cols = {name: g[name][:n] for name in g}
