@@ -11,6 +11,32 @@ from critfric.assembly import lame
 
 CASES = Path(__file__).resolve().parent.parent / "cases"
 
+# a gmsh .geo script of the unit square with the named groups critfric needs
+SQUARE_GEO = """\
+Point(1) = {0, 0, 0, 0.5}; Point(2) = {1, 0, 0, 0.5};
+Point(3) = {1, 1, 0, 0.5}; Point(4) = {0, 1, 0, 0.5};
+Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 1};
+Curve Loop(1) = {1, 2, 3, 4}; Plane Surface(1) = {1};
+Physical Curve("bottom") = {1}; Physical Curve("top") = {3};
+Physical Surface("domain") = {1};
+"""
+
+
+def resume_exactly_once(out, grid_nu: str, total: int, kept: int):
+    """Re-run the unit-square sweep of ``grid_nu`` into ``out`` (interrupted with ``kept``
+    points): only the missing points are computed and every point is there exactly once."""
+    import critfric
+    from critfric.sweep import make_grid, run_sweep
+    from critfric.sweepfile import read_sweep
+
+    case = critfric.load_case("unit-square")
+    grid = make_grid(case, nu=grid_nu, size="0.025", element="P1")
+    resumed = run_sweep(case, grid, output=out, jobs=1)
+    assert resumed.computed == total - kept
+    keys = [(r["element"], r["size"], r["nu"]) for r in read_sweep(out)["rows"]]
+    assert len(keys) == len(set(keys)) == total
+    return case, grid, resumed, keys
+
 
 def four_triangles_alpha(nu: float) -> float:
     """Paper, section 4.2: the positive critical coefficient of Fig. 3."""

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import h5py
 import pytest
+from helpers import SQUARE_GEO
 from typer.testing import CliRunner
 
 from critfric.cli import app
@@ -50,15 +51,6 @@ contact = ["e0"]
 dirichlet = ["e2"]
 [mesh]
 size = 0.25
-"""
-
-SQUARE_GEO = """\
-Point(1) = {0, 0, 0, 0.5}; Point(2) = {1, 0, 0, 0.5};
-Point(3) = {1, 1, 0, 0.5}; Point(4) = {0, 1, 0, 0.5};
-Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 1};
-Curve Loop(1) = {1, 2, 3, 4}; Plane Surface(1) = {1};
-Physical Curve("bottom") = {1}; Physical Curve("top") = {3};
-Physical Surface("domain") = {1};
 """
 
 FILE_CASE = """\

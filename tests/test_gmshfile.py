@@ -7,21 +7,13 @@ import time
 
 import numpy as np
 import pytest
+from helpers import SQUARE_GEO
 
 from critfric import loads_case, solve_case
 from critfric.errors import CaseError
 from critfric.geometry import rectangle
 from critfric.gmshfile import geo_hazards
 from critfric.mesh import build_mesh
-
-SQUARE_GEO = """\
-Point(1) = {0, 0, 0, 0.5}; Point(2) = {1, 0, 0, 0.5};
-Point(3) = {1, 1, 0, 0.5}; Point(4) = {0, 1, 0, 0.5};
-Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 1};
-Curve Loop(1) = {1, 2, 3, 4}; Plane Surface(1) = {1};
-Physical Curve("bottom") = {1}; Physical Curve("top") = {3};
-Physical Surface("domain") = {1};
-"""
 
 
 def file_case(path, *, element="P1", extra="", contact="bottom", dirichlet="top"):

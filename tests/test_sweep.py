@@ -14,7 +14,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from helpers import CASES, four_triangles_alpha, square_case
+from helpers import CASES, four_triangles_alpha, resume_exactly_once, square_case
 
 import critfric
 from critfric.errors import CaseError
@@ -154,12 +154,7 @@ def test_sigkill_half_way_then_rerun_gives_every_point_once(tmp_path):
     proc.stderr.close()
     kept = read_sweep(out)["rows"]
     assert 2 <= len(kept) < 16
-    case = critfric.load_case("unit-square")
-    grid = make_grid(case, nu="0.02:0.47:16", size="0.025", element="P1")
-    resumed = run_sweep(case, grid, output=out, jobs=1)
-    assert resumed.computed == 16 - len(kept)
-    keys = [(r["element"], r["size"], r["nu"]) for r in read_sweep(out)["rows"]]
-    assert len(keys) == len(set(keys)) == 16
+    case, grid, resumed, _ = resume_exactly_once(out, "0.02:0.47:16", 16, len(kept))
     whole = run_sweep(case, grid, output=tmp_path / "whole.h5", jobs=1)
     for a, b in zip(resumed.rows, whole.rows):
         assert a["status"] == b["status"] == "ok" and a["n_dofs"] == b["n_dofs"]

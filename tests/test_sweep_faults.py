@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from helpers import CASES, square_case
+from helpers import CASES, resume_exactly_once, square_case
 from typer.testing import CliRunner
 
 import critfric
@@ -99,12 +99,7 @@ def test_ctrl_c_with_worker_processes_keeps_every_point_and_resumes_exactly_once
     kept = read_sweep(out)["rows"]
     assert 2 <= len(kept) < 24 and all(r["status"] == "ok" for r in kept)
     assert [p.name for p in tmp_path.iterdir()] == ["s.h5"]  # no lock, no temporary file
-    case = critfric.load_case("unit-square")
-    grid = make_grid(case, nu="0.02:0.46:24", size="0.025", element="P1")
-    resumed = run_sweep(case, grid, output=out, jobs=1)
-    assert resumed.computed == 24 - len(kept)
-    keys = [(r["element"], r["size"], r["nu"]) for r in read_sweep(out)["rows"]]
-    assert len(keys) == len(set(keys)) == 24
+    _, grid, _, keys = resume_exactly_once(out, "0.02:0.46:24", 24, len(kept))
     assert sorted(k[2] for k in keys) == grid.nu
 
 
