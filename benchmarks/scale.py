@@ -37,7 +37,7 @@ NUS = [0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.49]
 
 
 def _case(h: float, backend: str):
-    from critfric.case import loads_case
+    from critfric.case.schema import loads_case
     return loads_case(f'[geometry]\nshape = "square"\n[material]\nnu = 0.3\n[mesh]\n'
                       f'size = {h}\n[solve]\nbackend = "{backend}"\n')
 
@@ -68,9 +68,9 @@ def child_factor(h: float, backend: str) -> dict:
     import numpy as np
 
     import critfric
-    from critfric.assembly import lame
-    from critfric.eigen import _fill_order
-    from critfric.linsolve import factorize
+    from critfric.fem.assembly import lame
+    from critfric.solvers.backends import factorize
+    from critfric.solvers.eigen import _fill_order
     prep = critfric.prepare(_case(h, backend), max_dofs=10**9)
     K = prep.system.stiffness(*lame(1.0, 0.3))
     t = time.perf_counter()  # with the ordering the eigen stage uses (computed in it too)
@@ -85,7 +85,7 @@ def child_plain(h: float) -> dict:
     import scipy.sparse.linalg as spla
 
     import critfric
-    from critfric.assembly import lame
+    from critfric.fem.assembly import lame
     prep = critfric.prepare(_case(h, "scipy"), max_dofs=10**9)
     s = prep.system
     K = s.stiffness(*lame(1.0, 0.3)).tocsc()
@@ -166,7 +166,7 @@ def main() -> None:
         print(json.dumps(out))
         return
     sys.path.insert(0, str(ROOT))
-    from critfric.linsolve import available_backends
+    from critfric.solvers.backends import available_backends
     backends = a.backends.split(",") if a.backends else list(available_backends())
     head = ("| DOFs | p | backend | mesh | assembly | contact | eigen | write | total (cpu) "
             "| peak GB | factor | eigen/factor | critical | plain SciPy | plain/total |")

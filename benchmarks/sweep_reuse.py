@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 import critfric
-from critfric.sweep import make_grid, run_sweep
+from critfric.sweep.runner import make_grid, run_sweep
 
 
 def timed(case, grid, out: Path, *, jobs: int, reuse: bool):

@@ -1,16 +1,21 @@
 """critfric: critical friction coefficients of Coulomb frictional contact (Hassani, Hild,
-Ionescu, Sakki 2003), from a TOML case to an HDF5 result."""
+Ionescu, Sakki 2003), from a TOML case to an HDF5 result.
 
-__version__ = "0.1.0"
+The pipeline, one subpackage a stage (imports only run downwards)::
 
-from .case import Case, load_case, loads_case, shipped_cases  # noqa: E402
-from .errors import CaseError, CritfricError, SolverError  # noqa: E402
-from .solve import Result, prepare, solve_case, solve_prepared  # noqa: E402
-from .results import read_summary, write_result  # noqa: E402
-from . import coulomb, verify  # noqa: F401  (critfric.verify.branch, critfric.coulomb)
+    case -> meshing -> fem -> solvers -> solve -> multiplicity -> files -> sweep -> plots -> cli
+"""
+
+from ._version import __version__
+from .case import Case, load_case, loads_case, shipped_cases
+from .errors import CaseError, CritfricError, SolverError
+from .files import read_summary, write_result
+from .multiplicity import verify
+from .solve import Prepared, Result, prepare, solve_case, solve_prepared
+from .solvers import coulomb
 
 __all__ = [
-    "Case", "CaseError", "CritfricError", "Result", "SolverError", "__version__", "load_case",
-    "loads_case", "prepare", "read_summary", "shipped_cases", "solve_case", "solve_prepared",
-    "write_result",
+    "Case", "CaseError", "CritfricError", "Prepared", "Result", "SolverError", "__version__",
+    "coulomb", "load_case", "loads_case", "prepare", "read_summary", "shipped_cases",
+    "solve_case", "solve_prepared", "verify", "write_result",
 ]

@@ -1,6 +1,6 @@
 """``python -m critfric``: the command line."""
 
-from critfric.cli import main
+from .cli.app import main
 
 if __name__ == "__main__":
     main()

@@ -17,12 +17,8 @@ output for the whole solve; a second writer is refused at once.
 
 from __future__ import annotations
 
-import fcntl
 import math
 import os
-import signal
-import sys
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -154,103 +150,8 @@ def polygon_footprint(vertices: np.ndarray) -> Footprint:
 
 
 # ------------------------------------------------------------------------------ interrupts
-class interrupt_guard:
-    """Ctrl-C that is never lost. SIGINT raises KeyboardInterrupt as usual and also sets a flag;
-    :meth:`check` raises it again at a safe point. CPython drops (and prints) an exception
-    raised inside a garbage-collection callback or ``__del__``: there the interrupt is kept
-    silently for :meth:`check`. A no-op outside the main thread or if SIGINT is ignored."""
-
-    def __enter__(self) -> "interrupt_guard":
-        self.hit = False
-        self._saved = None
-        try:
-            if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
-                self._saved = signal.signal(signal.SIGINT, self._handler)
-        except ValueError:  # not the main thread
-            return self
-        self._hook = sys.unraisablehook
-        sys.unraisablehook = self._unraisable
-        return self
-
-    def _handler(self, signum, frame):
-        self.hit = True
-        raise KeyboardInterrupt
-
-    def _unraisable(self, info) -> None:
-        if not (self.hit and issubclass(info.exc_type, KeyboardInterrupt)):
-            self._hook(info)
-
-    def check(self) -> None:
-        """Raise KeyboardInterrupt if Ctrl-C was pressed, even if it was swallowed."""
-        if self.hit:
-            raise KeyboardInterrupt
-
-    def __exit__(self, *exc) -> None:
-        if self._saved is not None:
-            signal.signal(signal.SIGINT, self._saved)
-            sys.unraisablehook = self._hook
 
 
 # ---------------------------------------------------------------------------------- locks
-@contextmanager
-def output_lock(path: Path | str):
-    """Hold an exclusive lock for writing ``path``; refuse at once if another process has it.
-
-    The lock is ``fcntl.flock`` on ``.<name>.lock`` in the same directory (so a killed writer
-    never blocks a later run); the file is removed when the lock is released.
-    """
-    path = Path(path)
-    lock = path.with_name(f".{path.name}.lock")
-    while True:
-        try:
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as exc:
-            raise CaseError(f"cannot write in directory {str(path.parent)!r} ({exc.strerror}); "
-                            "allowed: a file in a writable directory", file=str(path),
-                            key="output.file") from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            holder = os.read(fd, 64).decode(errors="replace").strip() or "unknown"
-            os.close(fd)
-            raise CaseError(f"is being written by another critfric process (pid {holder}); "
-                            "wait for it to finish or choose another output file",
-                            file=str(path), key="output.file") from None
-        try:  # the lock file may have been removed by its previous holder: start again
-            same = os.stat(lock).st_ino == os.fstat(fd).st_ino
-        except FileNotFoundError:
-            same = False
-        if same:
-            break
-        os.close(fd)
-    try:
-        os.ftruncate(fd, 0)
-        os.write(fd, str(os.getpid()).encode())
-        yield path
-    finally:
-        try:
-            os.unlink(lock)
-        except FileNotFoundError:
-            pass
-        os.close(fd)
 
 
-def check_held(mesh, dirichlet_nodes: np.ndarray, *, source: str | None = None) -> None:
-    """Refuse a mesh with a connected piece that touches no Dirichlet node: it would float
-    (a rigid motion left, a singular stiffness matrix)."""
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import connected_components
-
-    cells = np.asarray(mesh.cells)
-    n = len(mesh.points)
-    star = sp.coo_matrix((np.ones(cells.size), (np.repeat(cells[:, 0], cells.shape[1]),
-                                                cells.ravel())), shape=(n, n))
-    count, labels = connected_components(star, directed=False)
-    held = np.zeros(count, dtype=bool)
-    held[labels[np.asarray(dirichlet_nodes, dtype=np.int64)]] = True
-    if not held.all():
-        node = int(np.flatnonzero(~held[labels])[0])
-        raise CaseError(f"{np.count_nonzero(~held)} of the {count} connected pieces of the body "
-                        f"touch no Dirichlet edge (e.g. node {node} at "
-                        f"{mesh.points[node].tolist()}), so they float freely; allowed: every "
-                        "piece clamped on some edge", file=source, key="boundary.dirichlet")

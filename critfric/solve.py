@@ -14,16 +14,16 @@ from typing import Any
 
 import numpy as np
 
-from . import eigen
-from .assembly import assemble_elasticity, lame
-from .case import Case, load_case
-from .contact import ContactSystem, contact_system
+from .case.schema import Case, load_case
 from .errors import CaseError
-from .geometry import parallelogram, polygon, rectangle, validate
-from .gmshfile import check_file, file_mesh
-from .guards import check_dofs, check_held, polygon_footprint
-from .mesh import Mesh, build_mesh, inline_mesh
-from .static import contact_state
+from .fem.assembly import assemble_elasticity, lame
+from .fem.contact import ContactSystem, check_held, contact_system
+from .guards import check_dofs, polygon_footprint
+from .meshing.geometry import parallelogram, polygon, rectangle, validate
+from .meshing.gmshfile import check_file, file_mesh
+from .meshing.mesh import Mesh, build_mesh, inline_mesh
+from .solvers import eigen
+from .solvers.state import contact_state
 
 
 @dataclass
@@ -183,7 +183,7 @@ def solve_prepared(prep: Prepared, case: Case) -> Result:
     lam, G = lame(E, nu)
     s = case.solve
     system = prep.system
-    state = contact_state(case, system, prepared=prep)  # None: all slipping ([contact])
+    state = contact_state(case, system)  # None: all slipping ([contact])
     spec = eigen.solve(system.stiffness(lam, G), system, state, method=s["method"],
                        count=s["count"],
                        shift=s["shift"], tol=s["tol"], maxiter=s["maxiter"],

@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import math
+import os
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from critfric.assembly import lame
+from critfric.fem.assembly import lame
 
-CASES = Path(__file__).resolve().parent.parent / "cases"
+REPO = Path(__file__).resolve().parents[1]
+CASES = REPO / "cases"
 
 # a gmsh .geo script of the unit square with the named groups critfric needs
 SQUARE_GEO = """\
@@ -26,8 +31,8 @@ def resume_exactly_once(out, grid_nu: str, total: int, kept: int):
     """Re-run the unit-square sweep of ``grid_nu`` into ``out`` (interrupted with ``kept``
     points): only the missing points are computed and every point is there exactly once."""
     import critfric
-    from critfric.sweep import make_grid, run_sweep
-    from critfric.sweepfile import read_sweep
+    from critfric.files.sweepfile import read_sweep
+    from critfric.sweep.runner import make_grid, run_sweep
 
     case = critfric.load_case("unit-square")
     grid = make_grid(case, nu=grid_nu, size="0.025", element="P1")
@@ -68,3 +73,21 @@ structured = {str(structured).lower()}
 method = "{method}"
 {extra}
 """
+
+
+def run_cli(*args):
+    """``critfric ARGS`` in this process (typer's CliRunner); every argument str()-ed."""
+    from typer.testing import CliRunner
+
+    from critfric.cli import app
+
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def cli_process(*args, stdout=subprocess.PIPE, **env) -> subprocess.Popen:
+    """``python -m critfric ARGS`` in a child process with Ctrl-C at its default action
+    (so a test can interrupt it), this checkout first on the path, ``env`` added."""
+    env = dict(os.environ, PYTHONPATH=str(REPO), **env)
+    return subprocess.Popen([sys.executable, "-m", "critfric", *map(str, args)], env=env,
+                            stdout=stdout, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))

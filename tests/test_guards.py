@@ -13,27 +13,21 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from typer.testing import CliRunner
+from helpers import cli_process, run_cli
 
 from critfric import prepare, read_summary, solve_case
-from critfric.case import loads_case
-from critfric.cli import app
+from critfric.case.schema import loads_case
 from critfric.errors import CaseError
-from critfric.geometry import polygon
+from critfric.files.safety import atomic_h5, interrupt_guard, output_lock
 from critfric.guards import (
     Footprint,
     check_dofs,
     dofs_that_fit,
-    interrupt_guard,
     memory_estimate,
-    output_lock,
     polygon_footprint,
 )
-from critfric.mesh import build_mesh
-from critfric.results import atomic_h5
-
-REPO = Path(__file__).resolve().parent.parent
-runner = CliRunner()
+from critfric.meshing.geometry import polygon
+from critfric.meshing.mesh import build_mesh
 
 L_SHAPE = [[0, 0], [2, 0], [2, 1], [1, 1], [1, 2], [0, 2]]
 
@@ -111,10 +105,10 @@ def test_a_second_writer_is_refused_and_the_lock_goes_away(tmp_path):
 def test_cli_refuses_an_output_being_written(tmp_path):
     out = tmp_path / "r.h5"
     with output_lock(out):
-        res = runner.invoke(app, ["solve", "one-triangle", "-o", str(out)])
+        res = run_cli("solve", "one-triangle", "-o", out)
         assert res.exit_code == 2 and "being written by another critfric process" in res.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == []
-    assert runner.invoke(app, ["solve", "one-triangle", "-o", str(out)]).exit_code == 0
+    assert run_cli("solve", "one-triangle", "-o", out).exit_code == 0
     assert read_summary(out)["positive"] == pytest.approx([1.8])
 
 
@@ -162,15 +156,7 @@ def test_an_interrupted_write_leaves_the_old_file_and_no_temporary(tmp_path):
 
 
 def _cli(*args) -> subprocess.Popen:
-    env = dict(os.environ, PYTHONPATH=str(REPO), OMP_NUM_THREADS="1")
-    return subprocess.Popen([sys.executable, "-c", "from critfric.cli import main; main()",
-                             *map(str, args)], env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, preexec_fn=_ctrl_c_on)
-
-
-def _ctrl_c_on() -> None:
-    """In the child: SIGINT as in a terminal, even if the tests run with SIGINT ignored."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    return cli_process(*args, OMP_NUM_THREADS="1")
 
 
 def _wait_for(path: Path, proc: subprocess.Popen, timeout: float = 60) -> None:
@@ -186,13 +172,13 @@ def test_ctrl_c_during_a_solve_keeps_the_old_file_and_refuses_a_second_writer(tm
     result is intact, no temporary or lock file is left; meanwhile a second writer is
     refused."""
     out = tmp_path / "r.h5"
-    assert runner.invoke(app, ["solve", "one-triangle", "-o", str(out)]).exit_code == 0
+    assert run_cli("solve", "one-triangle", "-o", out).exit_code == 0
     old = out.read_bytes()
     proc = _cli("solve", "unit-square", "--size", "0.007", "--method", "arpack", "-o", out,
                 "--force")
     try:
         _wait_for(tmp_path / ".r.h5.lock", proc)
-        second = runner.invoke(app, ["solve", "four-triangles", "-o", str(out), "--force"])
+        second = run_cli("solve", "four-triangles", "-o", out, "--force")
         assert second.exit_code == 2 and "another critfric process" in second.stderr
         time.sleep(0.2)
         proc.send_signal(signal.SIGINT)

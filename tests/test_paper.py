@@ -13,7 +13,7 @@ from helpers import (
 )
 
 import critfric
-from critfric.assembly import assemble_elasticity, lame
+from critfric.fem.assembly import assemble_elasticity, lame
 from critfric.solve import make_mesh, prepare
 
 

@@ -1,0 +1,352 @@
+"""Case files: the TOML schema, strict validation, overrides and the shipped cases.
+
+A case is a TOML file with the sections ``[geometry]``, ``[boundary]``, ``[material]``,
+``[mesh]``, ``[solve]`` and ``[output]`` (see ``SCHEMA`` and the README). Validation is
+strict: an unknown key, a wrong type or an out-of-range value is a :class:`CaseError` that
+names the file, the dotted key, the value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+
+from ..case import checks as c
+from ..errors import CaseError
+
+ELEMENTS = ("P1", "P2", "Q1", "Q2")
+SHAPES = ("square", "rectangle", "parallelogram", "polygon", "mesh", "file")
+METHODS = ("auto", "arpack", "dense")
+BACKENDS = ("auto", "scipy", "pardiso")  # linear solvers: critfric.linsolve.BACKENDS
+
+
+POSITIVE = c.number(0.0, lo_open=True)
+
+SCHEMA: dict[str, dict[str, c.Key]] = {
+    "geometry": {
+        "shape": c.Key(c.choice(*SHAPES), c.REQUIRED, "the body: " + ", ".join(SHAPES)),
+        "side": c.Key(POSITIVE, 1.0, "square: side length"),
+        "width": c.Key(POSITIVE, c.REQUIRED, "rectangle: width"),
+        "height": c.Key(POSITIVE, c.REQUIRED, "rectangle, parallelogram: height H"),
+        "base": c.Key(POSITIVE, c.REQUIRED, "parallelogram: base length L (the bottom edge)"),
+        "offset": c.Key(c.number(), c.REQUIRED, "parallelogram: signed shift L' of the top edge"),
+        "vertices": c.Key(c.points, c.REQUIRED, "polygon: [[x, y], ...]"),
+        "edge_names": c.Key(c.string_list, None, "polygon: name of edge i (vertex i -> i+1)"),
+        "nodes": c.Key(c.points, c.REQUIRED, "mesh: node coordinates [[x, y], ...]"),
+        "triangles": c.Key(c.index_rows((3,)), None, "mesh: triangles [[a, b, c], ...]"),
+        "quads": c.Key(c.index_rows((4,)), None, "mesh: quadrilaterals [[a, b, c, d], ...]"),
+        "edges": c.Key(c.edge_table, c.REQUIRED, "mesh: named boundary edges {name = [[a, b], ...]}"),
+        "file": c.Key(c.path, c.REQUIRED, "file: a gmsh .msh mesh or .geo script, relative to the "
+                    "case file; boundary edges are its named physical curves"),
+        "domain": c.Key(c.names, None, "file: physical surface(s) of the body [every surface]"),
+    },
+    "boundary": {
+        "contact": c.Key(c.names, ["bottom"], "edges of Gamma_C (one straight segment)"),
+        "dirichlet": c.Key(c.names, ["top"], "clamped edges Gamma_D (at least one)"),
+    },
+    "material": {
+        "E": c.Key(POSITIVE, 1.0, "Young modulus (the eigenvalues do not depend on it)"),
+        "nu": c.Key(c.number(0.0, 0.5, hi_open=True), 0.3, "Poisson ratio in [0, 0.5)"),
+    },
+    "mesh": {
+        "element": c.Key(c.choice(*ELEMENTS), "P1", "finite element: " + ", ".join(ELEMENTS)),
+        "size": c.Key(POSITIVE, c.REQUIRED, "target element size h (gmsh shapes)"),
+        "structured": c.Key(c.boolean, False, "transfinite mesh (4-vertex shapes only)"),
+        "grading": c.Key(c.number(0.0, 1.0, lo_open=True), None,
+                       "size factor g in (0, 1] at the ends of Gamma_C"),
+    },
+    "solve": {
+        "method": c.Key(c.choice(*METHODS), "auto", "eigen solver: " + ", ".join(METHODS)),
+        "backend": c.Key(c.choice(*BACKENDS), "auto",
+                       "sparse linear solver: auto (the fastest available), scipy, pardiso"),
+        "count": c.Key(c.integer(1, 1000), 1, "number of lowest positive critical coefficients"),
+        "shift": c.Key(c.number(-1e6, 1e6), 0.0, "look for eigenvalues nearest this friction "
+                     "value (|alpha| above 1e6 counts as infinite)"),
+        "gamma": c.Key(c.gamma, 1, "slip sign of every contact node (+1 or -1)"),
+        "tol": c.Key(c.number(0.0, 1e-2), 0.0, "ARPACK relative tolerance (0: machine precision)"),
+        "maxiter": c.Key(c.integer(1, 10**7), None, "ARPACK iteration cap (default: ARPACK's)"),
+        "real_tol": c.Key(c.number(0.0, 1e-2), 1e-8, "|Im a| <= real_tol |a| counts as real"),
+    },
+    "load": {
+        "friction": c.Key(c.number(0.0), None, "friction coefficient of the static problem (2.8)"),
+        "traction": c.Key(c.table_of(c.vector, "[tx, ty]"), None,
+                        "constant traction on traction-free edges {name = [tx, ty]}"),
+        "body_force": c.Key(c.vector, None, "body force [fx, fy] (force per unit area)"),
+        "points": c.Key(c.point_forces, None,
+                      "point forces [{node = i or at = [x, y], force = [fx, fy]}, ...]"),
+        "displacement": c.Key(c.table_of(c.displacement, "[ux, uy] or [[a0, ax, ay], [b0, bx, by]]"),
+                            None, "prescribed displacement per Dirichlet edge (others: zero)"),
+        "reference": c.Key(c.reference, 0.0, "reference tangential displacement u^r: one value or "
+                         "one per contact node, sorted along t"),
+    },
+    "contact": {
+        "source": c.Key(c.choice("rules", "coulomb"), "rules", "contact state of the eigenproblem: "
+                      "'rules' below, or 'coulomb': the state of the static solution of [load]"),
+        "default": c.Key(c.choice(*c.STATUSES), "slip", "status of contact nodes no rule covers"),
+        "rules": c.Key(c.contact_rules, None, "[{from = s0, to = s1, status, gamma}]: status of the "
+                     "contact nodes at arc length s in [s0, s1] along t (later rules win)"),
+    },
+    "output": {
+        "file": c.Key(c.path, None, "HDF5 result file (default: <case name>.h5)"),
+        "modes": c.Key(c.boolean, True, "store the eigenfunctions of the critical eigenvalues"),
+    },
+}
+
+TOP_LEVEL = {"title": c.Key(c.string, None, "a title for tables and plots")}
+
+SHAPE_KEYS = {
+    "square": {"side"},
+    "rectangle": {"width", "height"},
+    "parallelogram": {"base", "height", "offset"},
+    "polygon": {"vertices", "edge_names"},
+    "mesh": {"nodes", "triangles", "quads", "edges"},
+    "file": {"file", "domain"},
+}
+
+# CLI override name -> dotted key
+OVERRIDES = {
+    "nu": "material.nu",
+    "element": "mesh.element",
+    "size": "mesh.size",
+    "count": "solve.count",
+    "shift": "solve.shift",
+    "method": "solve.method",
+    "backend": "solve.backend",
+    "output": "output.file",
+}
+
+
+# ----------------------------------------------------------------------------- the case
+@dataclass(frozen=True)
+class Case:
+    """A validated case: one plain dict per section, every default filled in."""
+
+    name: str
+    source: str
+    geometry: dict
+    boundary: dict
+    material: dict
+    mesh: dict
+    solve: dict
+    output: dict
+    title: str | None = None
+    text: str = ""
+    raw: dict = field(default_factory=dict, repr=False)
+    load: dict = field(default_factory=dict)
+    contact: dict = field(default_factory=dict)
+
+    def to_toml(self) -> str:
+        """The effective case (overrides applied) as TOML: re-running it gives the same run."""
+        return tomli_w.dumps(self.raw)
+
+    def with_overrides(self, overrides: dict[str, Any] | None) -> Case:
+        """A new validated case with dotted-key ``overrides`` applied."""
+        return from_dict(self.raw, source=self.source, name=self.name, text=self.text,
+                         overrides=overrides)
+
+
+def _shipped_dir() -> Path:
+    installed = Path(__file__).parent / "shipped"  # a wheel: pyproject.toml puts cases/ here
+    return installed if installed.is_dir() else Path(__file__).parents[2] / "cases"
+
+
+def shipped_cases() -> dict[str, Path]:
+    """Built-in case names (``inclined-body``) -> shipped TOML files."""
+    return {p.stem.replace("_", "-"): p for p in sorted(_shipped_dir().glob("*.toml"))}
+
+
+def resolve(case: str | Path) -> Path:
+    """A path to an existing case file, or the file of a shipped case name."""
+    path = Path(case)
+    if path.is_file():
+        return path
+    shipped = shipped_cases()
+    key = str(case).replace("_", "-").removesuffix(".toml")
+    if key in shipped and not path.exists():
+        return shipped[key]
+    if path.exists():
+        raise CaseError("is not a file", file=str(path))
+    names = ", ".join(shipped)
+    raise CaseError(f"no such case file, and not a shipped case name ({names})", file=str(path))
+
+
+def load_case(case: str | Path, *, overrides: dict[str, Any] | None = None) -> Case:
+    """Read and validate a case file (or a shipped case name), with dotted-key overrides."""
+    path = resolve(case)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CaseError(f"cannot read the case file: {exc}", file=str(path)) from None
+    return loads_case(text, source=str(path), name=path.stem, overrides=overrides)
+
+
+def loads_case(text: str, *, source: str = "<string>", name: str = "case",
+               overrides: dict[str, Any] | None = None) -> Case:
+    """Parse and validate TOML text."""
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise CaseError(f"TOML syntax error: {exc}", file=source) from None
+    return from_dict(raw, source=source, name=name, text=text, overrides=overrides)
+
+
+def _apply_overrides(raw: dict, overrides: dict[str, Any], source: str) -> dict:
+    merged = {k: dict(v) if isinstance(v, dict) else v for k, v in raw.items()}
+    for dotted, value in overrides.items():
+        if value is None:
+            continue
+        section, _, key = dotted.partition(".")
+        if section not in SCHEMA or key not in SCHEMA[section]:
+            raise CaseError(f"unknown override key {dotted!r}", file=source, key=dotted)
+        if not isinstance(merged.get(section, {}), dict):
+            raise CaseError("must be a table", file=source, key=section)
+        merged.setdefault(section, {})[key] = value
+    return merged
+
+
+def from_dict(raw: dict, *, source: str = "<dict>", name: str = "case", text: str = "",
+              overrides: dict[str, Any] | None = None) -> Case:
+    """Validate a parsed case dict; return a :class:`Case` with all defaults filled."""
+    if overrides:
+        raw = _apply_overrides(raw, overrides, source)
+    for key in raw:
+        if key not in SCHEMA and key not in TOP_LEVEL:
+            allowed = ", ".join(f"[{s}]" for s in SCHEMA) + ", " + ", ".join(TOP_LEVEL)
+            raise CaseError(f"unknown section or key {key!r}; allowed: {allowed}",
+                            file=source, key=key)
+    title = _check(TOP_LEVEL["title"], raw["title"], source, "title") if "title" in raw else None
+    if not isinstance(raw.get("geometry"), dict):
+        raise CaseError("missing section [geometry] (a table with at least 'shape')",
+                        file=source, key="geometry")
+    sections = {}
+    for section, keys in SCHEMA.items():
+        given = raw.get(section, {})
+        if not isinstance(given, dict):
+            raise CaseError("must be a table", file=source, key=section)
+        active = _active_keys(section, given, source)
+        values = {}
+        for key in given:
+            if key not in keys or key not in active:
+                allowed = ", ".join(sorted(active))
+                raise CaseError(f"unknown key {key!r} here; allowed: {allowed}",
+                                file=source, key=f"{section}.{key}")
+        for key in sorted(active):
+            spec = keys[key]
+            dotted = f"{section}.{key}"
+            if key in given:
+                values[key] = _check(spec, given[key], source, dotted)
+            elif spec.default is c.REQUIRED:
+                raise CaseError(f"missing key ({spec.doc})", file=source, key=dotted)
+            else:
+                values[key] = spec.default
+        sections[section] = values
+    _check_consistency(sections, source)
+    return Case(name=name, source=source, title=title, text=text, raw=raw, **sections)
+
+
+def _active_keys(section: str, given: dict, source: str) -> set[str]:
+    keys = set(SCHEMA[section])
+    if section == "geometry":
+        shape = _check(SCHEMA["geometry"]["shape"], given.get("shape"), source, "geometry.shape")
+        return {"shape"} | SHAPE_KEYS[shape]
+    if section == "mesh" and given.get("size") is None:
+        keys.discard("size")  # made required again below for gmsh shapes
+    return keys
+
+
+def _check(spec: c.Key, value, source: str, dotted: str):
+    try:
+        return spec.check(value)
+    except c.Bad as bad:
+        raise CaseError(f"got {value!r}; allowed: {bad}", file=source, key=dotted) from None
+
+
+def _check_consistency(s: dict, source: str) -> None:
+    geo, mesh, bnd = s["geometry"], s["mesh"], s["boundary"]
+    shape = geo["shape"]
+    if shape == "mesh":
+        if (geo["triangles"] is None) == (geo["quads"] is None):
+            raise CaseError("give exactly one of 'triangles' or 'quads'", file=source,
+                            key="geometry.triangles")
+        family = ("P1", "P2") if geo["triangles"] is not None else ("Q1", "Q2")
+        if mesh["element"] not in family:
+            raise CaseError(f"got {mesh['element']!r} for this inline mesh; allowed: "
+                            + " or ".join(family), file=source, key="mesh.element")
+        for key in ("size", "structured", "grading"):
+            if mesh.get(key) not in (None, False):
+                raise CaseError("does not apply to an inline mesh (shape = 'mesh')",
+                                file=source, key=f"mesh.{key}")
+        names = set(geo["edges"])
+    elif shape == "file":
+        _check_file_shape(geo, mesh, source)
+        names = None  # the file's physical groups: checked when it is read
+    else:
+        if mesh.get("size") is None:
+            raise CaseError("missing key (target element size h, a positive number)",
+                            file=source, key="mesh.size")
+        if shape == "polygon":
+            n = len(geo["vertices"])
+            names = set(geo["edge_names"] or [f"e{i}" for i in range(n)])
+            if geo["edge_names"] is not None and len(geo["edge_names"]) != n:
+                raise CaseError(f"got {len(geo['edge_names'])} names for {n} edges; allowed: "
+                                "one name per edge", file=source, key="geometry.edge_names")
+        else:
+            names = {"bottom", "right", "top", "left"}
+    for key in ("contact", "dirichlet"):
+        unknown = [e for e in bnd[key] if names is not None and e not in names]
+        if unknown:
+            raise CaseError(f"unknown edge {unknown[0]!r}; allowed: "
+                            + ", ".join(sorted(names)), file=source, key=f"boundary.{key}")
+    both = set(bnd["contact"]) & set(bnd["dirichlet"])
+    if both:
+        raise CaseError(f"edge {sorted(both)[0]!r} is both contact and Dirichlet; an edge has "
+                        "one condition", file=source, key="boundary.dirichlet")
+    mesh.setdefault("size", None)
+    _check_load(s, names, source)
+
+
+def _check_load(s: dict, names: set | None, source: str) -> None:
+    """[load] edges exist and carry the right condition; node indices exist (inline meshes)."""
+    load, bnd, geo = s["load"], s["boundary"], s["geometry"]
+    for name in load["traction"] or {}:
+        if (names is not None and name not in names) or name in bnd["contact"] + bnd["dirichlet"]:
+            free = sorted((names or set()) - set(bnd["contact"]) - set(bnd["dirichlet"]))
+            raise CaseError(f"got edge {name!r}; allowed: a traction-free edge ("
+                            + (", ".join(free) or "none") + ")", file=source, key="load.traction")
+    for name in load["displacement"] or {}:
+        if name not in bnd["dirichlet"]:
+            raise CaseError(f"got edge {name!r}; allowed: a Dirichlet edge ("
+                            + ", ".join(bnd["dirichlet"]) + ")", file=source,
+                            key="load.displacement")
+    for i, point in enumerate(load["points"] or []):
+        if "node" in point and (geo["shape"] != "mesh" or point["node"] >= len(geo["nodes"])):
+            allowed = (f"a node index < {len(geo['nodes'])}" if geo["shape"] == "mesh" else
+                       "at = [x, y] (node numbers of generated meshes are not stable)")
+            raise CaseError(f"got node = {point['node']}; allowed: {allowed}", file=source,
+                            key=f"load.points.{i}")
+
+
+GMSH_SUFFIXES = (".msh", ".geo")
+
+
+def _check_file_shape(geo: dict, mesh: dict, source: str) -> None:
+    suffix = Path(geo["file"]).suffix.lower()
+    if suffix not in GMSH_SUFFIXES:
+        raise CaseError(f"got {geo['file']!r}; allowed: a gmsh mesh (.msh) or script (.geo)",
+                        file=source, key="geometry.file")
+    for key in ("structured", "grading") + (("size",) if suffix == ".msh" else ()):
+        if mesh.get(key) not in (None, False):
+            raise CaseError(f"does not apply to a {suffix} file (shape = 'file')",
+                            file=source, key=f"mesh.{key}")
+
+
+def geometry_file(case: Case) -> Path:
+    """The gmsh file of a ``shape = "file"`` case; a relative path is relative to the case file
+    (to the current directory for a case given as text)."""
+    path = Path(case.geometry["file"]).expanduser()
+    base = Path(case.source).parent if Path(case.source).is_file() else Path(".")
+    return path if path.is_absolute() else base / path

@@ -1,0 +1,325 @@
+"""The command line: thin typer commands over the library's plain functions.
+
+Only this module prints or exits: a :class:`CritfricError` becomes one message on stderr and
+its exit code (2 for bad input, 1 for a numerical failure); Ctrl-C exits with 130.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from .._version import __version__
+from ..case.schema import BACKENDS, ELEMENTS, METHODS, OVERRIDES, load_case, shipped_cases
+from ..errors import CritfricError
+from ..files.results import default_output, read_summary, write_result
+from ..files.safety import check_output, interrupt_guard, output_lock
+from ..solve import solve_case
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_show_locals=False,
+    help="Critical friction coefficients of Coulomb frictional contact (plane strain).",
+)
+
+
+MaxDofs = Annotated[Optional[int], typer.Option(
+    "--max-dofs", min=1, help="Refuse meshes above this many DOFs [default: what memory allows].")]
+TrustGeo = Annotated[bool, typer.Option(
+    "--trust-geo", help="Mesh a .geo script even if it can run programs or touch other files.")]
+
+
+def _err(message: str) -> None:
+    typer.echo(message, err=True)
+
+
+def _fail(exc: CritfricError) -> None:
+    _err(f"critfric: error: {exc}")
+    raise typer.Exit(exc.exit_code)
+
+
+def _fmt(values, n: int = 4) -> str:
+    shown = ", ".join(f"{v:.10g}" for v in list(values)[:n])
+    more = len(values) - n
+    return (shown + (f", ... (+{more})" if more > 0 else "")) or "-"
+
+
+def _table(rows: list[dict]) -> str:
+    head = f"{'case':<16} {'element':<7} {'nu':>6} {'h':>9} {'n_dofs':>8} {'p':>5} " \
+           f"{'critical (lowest > 0)':>22} {'lowest < 0':>14} {'complex':>7} {'seconds':>8}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        pos = f"{r['positive'][0]:.10f}" if r["positive"] else "none"
+        neg = f"{r['negative'][0]:.8f}" if r["negative"] else "none"
+        lines.append(f"{r['case']:<16} {r['element']:<7} {r['nu']:>6.3f} {r['h']:>9.4g} "
+                     f"{r['n_dofs']:>8d} {r['n_contact']:>5d} {pos:>22} {neg:>14} "
+                     f"{r['complex_count']:>7d} {r['seconds']:>8.2f}")
+    return "\n".join(lines)
+
+
+@app.command()
+def solve(
+    case: str = typer.Argument(..., help="Case file (TOML) or shipped case name "
+                                         "(see `critfric cases`)."),
+    nu: Optional[float] = typer.Option(None, help="Poisson ratio, overrides [material] nu."),
+    element: Optional[str] = typer.Option(None, help="Element: " + ", ".join(ELEMENTS) + "."),
+    size: Optional[float] = typer.Option(None, help="Target mesh size h."),
+    count: Optional[int] = typer.Option(None, help="Lowest positive coefficients wanted."),
+    shift: Optional[float] = typer.Option(None, help="Find eigenvalues nearest this value."),
+    method: Optional[str] = typer.Option(None, help="Eigen solver: " + ", ".join(METHODS) + "."),
+    backend: Optional[str] = typer.Option(None, help="Sparse linear solver: "
+                                          + ", ".join(BACKENDS) + "."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="HDF5 result file."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing result file."),
+    as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
+    max_dofs: MaxDofs = None,
+    trust_geo: TrustGeo = False,
+    plot: bool = typer.Option(False, "--plot", help="Also write the figures (PNG)."),
+) -> None:
+    """Compute the critical friction coefficients of a case and write an HDF5 result."""
+    given = {"nu": nu, "element": element, "size": size, "count": count, "shift": shift,
+             "method": method, "backend": backend,
+             "output": str(output) if output is not None else None}
+    overrides = {OVERRIDES[k]: v for k, v in given.items() if v is not None}
+    try:
+        loaded = load_case(case, overrides=overrides)
+        path = check_output(default_output(loaded), force=force)
+        with interrupt_guard() as interrupted, output_lock(path):
+            check_output(path, force=force)  # again: another run may have written it
+            result = solve_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo)
+            interrupted.check()  # a Ctrl-C that Python swallowed: still nothing written
+            write_result(result, path, force=force)
+        if plot:
+            from ..plots.figures import plot_file
+
+            for png in plot_file(path):
+                _err(f"wrote {png}")
+    except CritfricError as exc:
+        _fail(exc)
+    except KeyboardInterrupt:  # typer would exit 130 silently
+        _err("critfric: interrupted: no result written (an existing file is unchanged)")
+        raise typer.Exit(130) from None
+    for note in result.notes:
+        _err(f"critfric: note: {note}")
+    for warning in result.warnings:
+        _err(f"critfric: warning: {warning}")
+    summary = result.summary()
+    if as_json:
+        typer.echo(json.dumps(summary))
+        return
+    _err(f"wrote {path}")
+    typer.echo(f"case      {loaded.title or loaded.name} ({loaded.source})")
+    typer.echo(f"mesh      {result.element}, h = {result.h:.4g}, {result.n_dofs} DOFs, "
+               f"{result.n_contact} contact nodes")
+    typer.echo(f"nu        {result.nu:g}   solver {result.solver}   "
+               f"{result.seconds:.2f} s")
+    typer.echo(f"positive  {_fmt(result.positive)}")
+    typer.echo(f"negative  {_fmt(result.negative)}")
+    typer.echo(f"complex   {result.complex_count}")
+    typer.echo(f"critical friction coefficient: {result.critical:.10g}")
+
+
+@app.command()
+def cases() -> None:
+    """List the shipped cases (usable by name: `critfric solve inclined-body`)."""
+    for name, path in shipped_cases().items():
+        title = load_case(path).title or ""
+        typer.echo(f"{name:<16} {title}")
+
+
+@app.command()
+def table(
+    files: list[Path] = typer.Argument(..., help="Result files written by `critfric solve`."),
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON list instead."),
+) -> None:
+    """Print a table of the results stored in solve files."""
+    try:
+        rows = [read_summary(f) for f in files]
+    except CritfricError as exc:
+        _fail(exc)
+    typer.echo(json.dumps(rows) if as_json else _table(rows))
+
+
+@app.command()
+def sweep(
+    case: Optional[str] = typer.Argument(None, help="Case file or shipped case name "
+                                                    "[default: unit-square]."),
+    nu: Optional[str] = typer.Option(None, help="Poisson ratios: A:B[:N] (N points, default "
+                                     "11; a range ending at 0.5 stops just short of it) or "
+                                     "v1,v2,... [default: the case's nu]."),
+    size: Optional[str] = typer.Option(None, help="Mesh sizes h1,h2,... (three or more give "
+                                       "h -> 0 limits) [default: the case's size]."),
+    element: Optional[str] = typer.Option(None, help="Elements, e.g. P1,P2 [default: the "
+                                          "case's element]."),
+    grading: Optional[float] = typer.Option(None, help="Meshes graded towards the ends of "
+                                            "Gamma_C: size g*h there, g in (0, 1]."),
+    count: Optional[int] = typer.Option(None, help="Lowest coefficients stored per family."),
+    jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help="Worker processes "
+                                       "[default: all cores]."),
+    scheduler: Optional[str] = typer.Option(None, help="Run on this Dask scheduler "
+                                            "(e.g. tcp://host:8786) instead."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Sweep file "
+                                          "[default: <case name>_sweep.h5]."),
+    force: bool = typer.Option(False, "--force", help="Discard an existing sweep file written "
+                               "for another case or grid."),
+    as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
+    plot: bool = typer.Option(False, "--plot", help="Also write the figures (PNG)."),
+    max_dofs: MaxDofs = None,
+    trust_geo: TrustGeo = False,
+) -> None:
+    """Sweep nu, mesh size and element; resumable; h -> 0 limits by Richardson extrapolation."""
+    from ..plots.figures import plot_file
+    from ..sweep.runner import default_output as sweep_output
+    from ..sweep.runner import make_grid, report, run_sweep
+    from .progress import progress_bar
+
+    try:
+        loaded = load_case(case or "unit-square",
+                           overrides={"mesh.grading": grading, "solve.count": count})
+        grid = make_grid(loaded, nu=nu, size=size, element=element, max_dofs=max_dofs,
+                         trust_geo=trust_geo)
+        for note in grid.notes:
+            _err(f"critfric: note: {note}")
+        out = output or sweep_output(loaded)
+        with interrupt_guard() as interrupted, output_lock(out), \
+                progress_bar(enabled=not as_json and sys.stderr.isatty()) as on_point:
+
+            def point_done(row, done, total):  # after each point written: honour Ctrl-C
+                on_point(row, done, total)
+                interrupted.check()
+
+            result = run_sweep(loaded, grid, output=out, jobs=jobs, scheduler=scheduler,
+                               force=force, on_point=point_done, max_dofs=max_dofs,
+                               trust_geo=trust_geo)
+        pngs = plot_file(result.path) if plot else []
+    except CritfricError as exc:
+        _fail(exc)
+    except KeyboardInterrupt:  # typer would exit 130 silently
+        _err("critfric: interrupted: every finished point is kept in the sweep file; run the "
+             "same command again to compute only the rest")
+        raise typer.Exit(130) from None
+    typer.echo(json.dumps(result.summary()) if as_json else report(result))
+    for png in pngs:
+        _err(f"wrote {png}")
+
+
+@app.command()
+def plot(
+    file: Path = typer.Argument(..., help="A sweep or solve file."),
+    nu: Optional[float] = typer.Option(None, help="Sweep: the nu of the convergence figure "
+                                       "[default: the middle one]."),
+) -> None:
+    """Write the figures (PNG) of a sweep or solve file next to it."""
+    from ..plots.figures import plot_file
+
+    try:
+        pngs = plot_file(file, nu=nu)
+    except CritfricError as exc:
+        _fail(exc)
+    for png in pngs:
+        typer.echo(str(png))
+
+
+@app.command()
+def export(
+    file: Path = typer.Argument(..., help="A solve file."),
+    fmt: str = typer.Option("xdmf", "--format", help="xdmf or vtu."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Output file "
+                                          "[default: <file>_modes.<format>]."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing export."),
+) -> None:
+    """Export the mesh and the critical modes (Phi, stress, von Mises) for ParaView."""
+    from ..files.export import export_file
+
+    try:
+        path = export_file(file, fmt=fmt, output=output, force=force)
+    except CritfricError as exc:
+        _fail(exc)
+    typer.echo(str(path))
+
+
+@app.command()
+def solutions(
+    case: str = typer.Argument(..., help="Case file or shipped case name; its [load] is used."),
+    friction: str = typer.Option(..., "--friction", help="Friction values: a:b:N (N values "
+                                 "from a to b) or one value."),
+    nu: Optional[float] = typer.Option(None, help="Poisson ratio, overrides [material] nu."),
+    as_json: bool = typer.Option(False, "--json", help="Print only a JSON list on stdout."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of the bifurcation diagram "
+                                        "[default: <case name>_solutions.png]."),
+    no_plot: bool = typer.Option(False, "--no-plot", help="Write no PNG."),
+) -> None:
+    """Every solution of the static Coulomb problem (2.8) of a small case (p <= 8 contact
+    nodes), by enumeration, over a range of friction values."""
+    from ..multiplicity.enumeration import parse_frictions, report, solutions_of_case
+    from ..plots.static import default_plot, solutions_plot
+
+    try:
+        loaded = load_case(case, overrides={"material.nu": nu})
+        sweep = solutions_of_case(loaded, parse_frictions(friction))
+        png = None if no_plot else solutions_plot(
+            sweep, plot or default_plot(loaded, "solutions"), title=loaded.title or "")
+    except CritfricError as exc:
+        _fail(exc)
+    typer.echo(json.dumps([e.to_json() for e in sweep]) if as_json else report(sweep))
+    if png:
+        _err(f"wrote {png}")
+
+
+@app.command()
+def verify(
+    case: str = typer.Argument(..., help="Case file or shipped case name."),
+    nu: Optional[float] = typer.Option(None, help="Poisson ratio, overrides [material] nu."),
+    element: Optional[str] = typer.Option(None, help="Element: " + ", ".join(ELEMENTS) + "."),
+    size: Optional[float] = typer.Option(None, help="Target mesh size h."),
+    off: float = typer.Option(0.01, help="Counter-check at friction * (1 -/+ off)."),
+    as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of the branch "
+                                        "[default: <case name>_verify.png]."),
+    no_plot: bool = typer.Option(False, "--no-plot", help="Write no PNG."),
+) -> None:
+    """Check the explicit non-uniqueness example of section 5 at the critical coefficient:
+    a whole branch u + delta Phi of solutions. Exit code 1 if the check fails."""
+    from ..multiplicity.verify import report
+    from ..multiplicity.verify import verify as run_verify
+    from ..plots.static import branch_plot, default_plot
+
+    given = {"nu": nu, "element": element, "size": size}
+    try:
+        loaded = load_case(case, overrides={OVERRIDES[k]: v for k, v in given.items()})
+        result = run_verify(loaded, off=off)
+        png = None if no_plot else branch_plot(result, plot or default_plot(loaded, "verify"))
+    except CritfricError as exc:
+        _fail(exc)
+    typer.echo(json.dumps(result.summary()) if as_json else report(result))
+    if png:
+        _err(f"wrote {png}")
+    if not result.passed:
+        raise typer.Exit(1)
+
+
+def version_callback(value: bool) -> None:
+    if value:
+        typer.echo(f"critfric {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main_callback(
+    version: bool = typer.Option(False, "--version", callback=version_callback,
+                                 is_eager=True, help="Print the version and exit."),
+) -> None:
+    """critfric: critical friction coefficients (Hassani, Hild, Ionescu, Sakki 2003)."""
+
+
+def main() -> None:
+    try:
+        app()
+    except KeyboardInterrupt:
+        _err("critfric: interrupted")
+        sys.exit(130)

@@ -1,0 +1,149 @@
+"""Vectorized assembly of plane-strain elasticity: stiffness, loads and stresses.
+
+DOFs are interleaved: node i has x DOF 2i and y DOF 2i+1. The stiffness splits as
+``K = lam * K_lam + G * K_G`` with ``a(u, v) = int lam div u div v + 2 G eps(u) : eps(v)``.
+All element arrays are (n_cells, n_qp, ...) numpy arrays; there are no loops over cells.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import CaseError
+from ..meshing.mesh import Mesh
+from .elements import get_element
+
+
+def lame(E: float, nu: float) -> tuple[float, float]:
+    """Lamé constants (lam, G) from Young's modulus ``E`` and Poisson ratio ``nu``."""
+    return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))
+
+
+def _index_dtype(n_dofs: int):
+    return np.int32 if n_dofs < np.iinfo(np.int32).max else np.int64
+
+
+def _jacobians(mesh: Mesh, dref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """J[c, q, i, j] = d x_i / d xi_j and det J at the points of the reference gradients
+    ``dref`` (n_local, n_pts, 2); :class:`CaseError` if any det J is non-positive."""
+    element = get_element(mesh.element)
+    cells = np.asarray(mesh.cells)
+    if cells.ndim != 2 or cells.shape[1] != element.n_local:
+        raise CaseError(
+            f"cells have shape {cells.shape}; element {element.name} needs {element.n_local} nodes"
+        )
+    X = np.asarray(mesh.points, dtype=float)[cells]  # (n_cells, n_local, 2)
+    J = np.einsum("cai,aqj->cqij", X, dref, optimize=True)
+    det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
+    # scale-free test: det J / |J|_F^2 <= 1/2, and is ~0 for a degenerate cell
+    bad = np.any(det <= 1e-12 * np.square(J).sum(axis=(-2, -1)), axis=1)
+    if np.any(bad):
+        raise CaseError(
+            f"{int(bad.sum())} of {len(cells)} {element.name} cells have a non-positive Jacobian "
+            f"determinant (inverted, clockwise or degenerate), first cell index "
+            f"{int(np.flatnonzero(bad)[0])}"
+        )
+    return J, det
+
+
+def cell_geometry(mesh: Mesh, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Shape values (n_local, n_pts), determinants (n_cells, n_pts) and physical gradients
+    (n_cells, n_pts, n_local, 2) at reference points ``xi`` (n_pts, 2).
+
+    Raises :class:`CaseError` if a determinant is non-positive (inverted or degenerate cell).
+    """
+    values, dref = get_element(mesh.element).shape(xi)  # (n_local, n_pts), (n_local, n_pts, 2)
+    J, det = _jacobians(mesh, dref)
+    inv = np.empty_like(J)  # inv[c, q, j, i] = d xi_j / d x_i
+    inv[..., 0, 0], inv[..., 1, 1] = J[..., 1, 1] / det, J[..., 0, 0] / det
+    inv[..., 0, 1], inv[..., 1, 0] = -J[..., 0, 1] / det, -J[..., 1, 0] / det
+    grads = np.matmul(dref.transpose(1, 0, 2), inv)  # sum_j dref[a, q, j] inv[c, q, j, i]
+    return values, det, grads
+
+
+def assemble_elasticity(mesh: Mesh) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """CSR matrices ``(K_lam, K_G)`` over all 2 * n_nodes DOFs with ``K = lam K_lam + G K_G``."""
+    element = get_element(mesh.element)
+    if element.name != "P1":  # also reject cells inverted at nodes (P1: J is constant)
+        _jacobians(mesh, element.shape(element.doflocs)[1])
+    xi, w = element.quadrature()
+    _, det, grads = cell_geometry(mesh, xi)
+    wdet = det * w  # (n_cells, n_qp)
+    n_cells, nl = grads.shape[0], element.n_local
+    n_dofs = 2 * mesh.n_nodes
+    itype = _index_dtype(n_dofs)
+    dofs = 2 * np.asarray(mesh.cells, dtype=itype)[:, :, None] + np.arange(2, dtype=itype)
+    dofs = dofs.reshape(n_cells, 2 * nl)
+    rows = np.repeat(dofs, 2 * nl, axis=1).ravel()
+    cols = np.tile(dofs, (1, 2 * nl)).ravel()
+    shape = (n_dofs, n_dofs)
+    # K_lam[(a,k),(b,l)] = int d_k N_a d_l N_b; index 2a+k of g is d_k N_a
+    g = grads.reshape(n_cells, -1, 2 * nl)
+    local = np.matmul(g.transpose(0, 2, 1) * wdet[:, None, :], g)
+    del g, grads
+    K_lam = sp.coo_matrix((local.ravel(), (rows, cols)), shape=shape).tocsr()
+    del local, rows, cols
+    # K_G[(a,k),(b,l)] = int (delta_kl grad N_a . grad N_b + d_l N_a d_k N_b): node block by
+    # node block, K_G = B^T + tr(B) I for the 2 x 2 block B of K_lam (same sparsity)
+    return K_lam, _shear_part(K_lam)
+
+
+def _shear_part(K_lam: sp.csr_matrix) -> sp.csr_matrix:
+    """K_G from K_lam: every 2 x 2 node block B becomes B^T + tr(B) I.
+
+    Rows 2i and 2i+1 of an assembled K_lam hold the same columns, and (sorted) the two
+    columns of a node are adjacent: the four entries of a block sit at q, q + 1 (row 2i)
+    and q + d, q + d + 1 (row 2i + 1, d = its offset from row 2i).
+    """
+    K_lam.sort_indices()
+    ip, cols, B = K_lam.indptr, K_lam.indices, K_lam.data
+    length = np.diff(ip)
+    if not (np.array_equal(length[0::2], length[1::2]) and np.all(length % 2 == 0)):
+        raise RuntimeError("internal: K_lam is not made of full 2 x 2 node blocks")
+    row = np.repeat(np.arange(len(length)), length)
+    q00 = np.flatnonzero((row % 2 == 0) & (cols % 2 == 0))
+    q10 = q00 + length[row[q00]]
+    b00, b01, b10, b11 = B[q00], B[q00 + 1], B[q10], B[q10 + 1]
+    G = np.empty_like(B)
+    G[q00], G[q00 + 1], G[q10], G[q10 + 1] = 2 * b00 + b11, b10, b01, b00 + 2 * b11
+    return sp.csr_matrix((G, cols.copy(), ip.copy()), shape=K_lam.shape)
+
+
+def cell_strain(mesh: Mesh, u: np.ndarray, xi: np.ndarray) -> np.ndarray:
+    """Strain (exx, eyy, exy) at reference points ``xi`` of every cell: (n_cells, n_pts, 3)."""
+    _, _, grads = cell_geometry(mesh, xi)
+    ue = np.asarray(u, dtype=float).reshape(-1, 2)[np.asarray(mesh.cells)]  # (n_cells, nl, 2)
+    du = np.einsum("cak,cqai->cqki", ue, grads)  # du[c, q, k, i] = d u_k / d x_i
+    return np.stack([du[..., 0, 0], du[..., 1, 1], 0.5 * (du[..., 0, 1] + du[..., 1, 0])], -1)
+
+
+def cell_stress(
+    mesh: Mesh, u: np.ndarray, lam: float, G: float, at: str = "nodes"
+) -> np.ndarray:
+    """Plane-strain stress (sxx, syy, sxy, szz) per cell, (n_cells, n_pts, 4).
+
+    ``at="nodes"`` evaluates at the cell's nodes (local order, n_pts = n_local, discontinuous
+    between cells); ``at="centroid"`` at the reference centroid (n_pts = 1).
+    """
+    element = get_element(mesh.element)
+    if at == "nodes":
+        xi = element.doflocs
+    elif at == "centroid":
+        xi = np.array([[1 / 3, 1 / 3]]) if element.reference == "triangle" else np.zeros((1, 2))
+    else:
+        raise CaseError(f"unknown stress location {at!r}; allowed: nodes, centroid")
+    eps = cell_strain(mesh, u, xi)
+    tr = eps[..., 0] + eps[..., 1]
+    return np.stack(
+        [lam * tr + 2 * G * eps[..., 0], lam * tr + 2 * G * eps[..., 1], 2 * G * eps[..., 2],
+         lam * tr], axis=-1
+    )
+
+
+def von_mises(stress: np.ndarray) -> np.ndarray:
+    """Von Mises stress from (..., 4) components (sxx, syy, sxy, szz), szz included."""
+    sxx, syy, sxy, szz = np.moveaxis(np.asarray(stress), -1, 0)
+    return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2) + 3 * sxy**2)
+
+

@@ -1,0 +1,188 @@
+"""The contact boundary: Dirichlet and contact nodes, the outward normal, the n/t DOF basis.
+
+:func:`contact_system` turns a mesh and its two material-independent stiffness parts into a
+:class:`ContactSystem`: the stiffness restricted to the free DOFs (Dirichlet DOFs removed),
+written in a basis where each contact node has a normal and a tangential DOF. Changing the
+Poisson ratio then costs one linear combination ``lam * K_lam + G * K_G``, no re-assembly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import CaseError
+from ..meshing.mesh import Mesh
+
+FREE, STUCK, SLIP = 0, 1, 2  # contact status of a node (I_f, I_s, I_c)
+STRAIGHT_TOL = 1e-9  # relative distance to the line allowed on a straight Gamma_C
+
+
+@dataclass(frozen=True)
+class ContactSystem:
+    """Stiffness parts on the free DOFs, with contact DOFs in the (n, t) basis.
+
+    free    : (m,) global DOF indices (2 * node + component) that are not Dirichlet.
+    nodes   : (p,) contact node indices, sorted along the tangent t.
+    normal, tangent : outward unit normal n of Gamma_C and t = (-n2, n1).
+    cn, ct  : (p,) positions, within the free DOFs, of the normal and tangential DOF of each
+              contact node.
+    K_lam, K_G : (m, m) CSR parts, K = lam * K_lam + G * K_G.
+    fixed   : (d,) global DOF indices of the Dirichlet nodes (xy components).
+    D_lam, D_G : (m, d) CSR parts of the coupling of the free DOFs (rows, n/t basis) to the
+              Dirichlet DOFs (columns): prescribed values u_D add -K_FD u_D to the load.
+    """
+
+    mesh: Mesh
+    free: np.ndarray
+    nodes: np.ndarray
+    normal: np.ndarray
+    tangent: np.ndarray
+    cn: np.ndarray
+    ct: np.ndarray
+    K_lam: sp.csr_matrix
+    K_G: sp.csr_matrix
+    fixed: np.ndarray | None = None
+    D_lam: sp.csr_matrix | None = None
+    D_G: sp.csr_matrix | None = None
+
+    @property
+    def n_dofs(self) -> int:
+        return len(self.free)
+
+    @property
+    def n_contact(self) -> int:
+        return len(self.nodes)
+
+    def stiffness(self, lam: float, G: float) -> sp.csr_matrix:
+        return (lam * self.K_lam + G * self.K_G).tocsr()
+
+    def coupling(self, lam: float, G: float) -> sp.csr_matrix:
+        """K_FD (m, d): free rows (n/t basis) x Dirichlet columns (xy)."""
+        return (lam * self.D_lam + G * self.D_G).tocsr()
+
+    def from_xy(self, full: np.ndarray) -> np.ndarray:
+        """Nodal vector(s) (..., 2 * n_nodes) in xy -> free-DOF vector(s) in the n/t basis."""
+        u = np.array(full, dtype=float).reshape(np.shape(full)[:-1] + (self.mesh.n_nodes, 2))
+        c = u[..., self.nodes, :].copy()
+        u[..., self.nodes, 0], u[..., self.nodes, 1] = c @ self.normal, c @ self.tangent
+        return u.reshape(np.shape(full))[..., self.free]
+
+    def to_xy(self, u_free: np.ndarray) -> np.ndarray:
+        """Free-DOF vector(s) in the n/t basis -> nodal displacements (..., n_nodes, 2)."""
+        u_free = np.asarray(u_free)
+        full = np.zeros(u_free.shape[:-1] + (2 * self.mesh.n_nodes,), dtype=u_free.dtype)
+        full[..., self.free] = u_free
+        u = full.reshape(u_free.shape[:-1] + (self.mesh.n_nodes, 2))
+        un, ut = u[..., self.nodes, 0].copy(), u[..., self.nodes, 1].copy()
+        u[..., self.nodes, :] = (un[..., None] * self.normal + ut[..., None] * self.tangent)
+        return u
+
+
+def contact_geometry(mesh: Mesh, contact: list[str], dirichlet_nodes: np.ndarray,
+                     *, source: str = "") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Contact nodes (sorted along t), the outward normal n and the tangent t of Gamma_C."""
+    facets = np.concatenate([mesh.edges[name] for name in contact])
+    on_line = np.unique(facets)
+    pts = mesh.points[on_line]
+    start = pts[np.argmax(np.linalg.norm(pts - pts[0], axis=1))]  # an end of the run
+    far = pts[np.argmax(np.linalg.norm(pts - start, axis=1))]  # the other end
+    length = np.linalg.norm(far - start)
+    if length == 0.0:
+        raise CaseError("the contact edges have zero length", file=source, key="boundary.contact")
+    direction = (far - start) / length
+    normal = np.array([direction[1], -direction[0]])
+    offset = (pts - start) @ normal
+    if np.max(np.abs(offset)) > STRAIGHT_TOL * length:
+        raise CaseError(
+            f"edges {contact} are not one straight segment (a node is "
+            f"{np.max(np.abs(offset)):.3g} off the line); allowed: collinear edges only",
+            file=source, key="boundary.contact")
+    # Orient n outwards: cells with an edge on Gamma_C lie on the inner side.
+    touching = np.isin(mesh.cells[:, :_n_vertices(mesh)], on_line).sum(axis=1) >= 2
+    side = (mesh.points[mesh.cells[touching]].mean(axis=1) - start) @ normal
+    if touching.sum() == 0 or not (np.all(side > 0) or np.all(side < 0)):
+        raise CaseError(f"edges {contact} are not on the boundary of the body (cells on both "
+                        "sides)", file=source, key="boundary.contact")
+    if side[0] > 0:
+        normal = -normal
+    tangent = np.array([-normal[1], normal[0]])
+    nodes = np.setdiff1d(on_line, dirichlet_nodes)
+    if len(nodes) == 0:
+        raise CaseError("the contact boundary has no node that is not also on a Dirichlet "
+                        "edge; allowed: a contact edge with at least one free node",
+                        file=source, key="boundary.contact")
+    nodes = nodes[np.argsort(mesh.points[nodes] @ tangent, kind="stable")]
+    return nodes, normal, tangent
+
+
+def _n_vertices(mesh: Mesh) -> int:
+    return 3 if mesh.element in ("P1", "P2") else 4
+
+
+def rotation(n_nodes: int, nodes: np.ndarray, normal, tangent) -> sp.csr_matrix:
+    """Q with u_xy = Q u_nt: identity except a [n t] block at each contact node."""
+    dofs = np.arange(2 * n_nodes)
+    keep = np.ones(2 * n_nodes, dtype=bool)
+    keep[2 * nodes] = keep[2 * nodes + 1] = False
+    rows = [dofs[keep]]
+    cols = [dofs[keep]]
+    vals = [np.ones(keep.sum())]
+    for a in range(2):          # xy component
+        for b in range(2):      # n (0) or t (1) component
+            rows.append(2 * nodes + a)
+            cols.append(2 * nodes + b)
+            vals.append(np.full(len(nodes), (normal, tangent)[b][a]))
+    return sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(2 * n_nodes, 2 * n_nodes)).tocsr()
+
+
+def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix, *, contact: list[str],
+                   dirichlet: list[str], source: str = "") -> ContactSystem:
+    """Classify the boundary nodes and restrict the stiffness parts to the free DOFs."""
+    for key, names in (("boundary.contact", contact), ("boundary.dirichlet", dirichlet)):
+        missing = [n for n in names if n not in mesh.edges or len(mesh.edges[n]) == 0]
+        if missing:
+            raise CaseError(f"edge {missing[0]!r} has no mesh facet; known edges: "
+                            + ", ".join(sorted(mesh.edges)), file=source, key=key)
+    dirichlet_nodes = mesh.edge_nodes(dirichlet)
+    nodes, normal, tangent = contact_geometry(mesh, contact, dirichlet_nodes, source=source)
+    n_dof = 2 * mesh.n_nodes
+    fixed = np.zeros(n_dof, dtype=bool)
+    fixed[2 * dirichlet_nodes] = fixed[2 * dirichlet_nodes + 1] = True
+    free = np.flatnonzero(~fixed)
+    position = np.full(n_dof, -1, dtype=np.int64)
+    position[free] = np.arange(len(free))
+    Q = rotation(mesh.n_nodes, nodes, normal, tangent)
+    QT = Q.T.tocsr()
+    rows = [(QT @ K @ Q).tocsr()[free] for K in (K_lam, K_G)]
+    parts = [r[:, free].tocsr() for r in rows]
+    fixed_dofs = np.flatnonzero(fixed)
+    coupling = [r[:, fixed_dofs].tocsr() for r in rows]  # Q is the identity on Dirichlet DOFs
+    return ContactSystem(mesh=mesh, free=free, nodes=nodes, normal=normal, tangent=tangent,
+                         cn=position[2 * nodes], ct=position[2 * nodes + 1],
+                         K_lam=parts[0], K_G=parts[1], fixed=fixed_dofs,
+                         D_lam=coupling[0], D_G=coupling[1])
+
+
+def check_held(mesh, dirichlet_nodes: np.ndarray, *, source: str | None = None) -> None:
+    """Refuse a mesh with a connected piece that touches no Dirichlet node: it would float
+    (a rigid motion left, a singular stiffness matrix)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    cells = np.asarray(mesh.cells)
+    n = len(mesh.points)
+    star = sp.coo_matrix((np.ones(cells.size), (np.repeat(cells[:, 0], cells.shape[1]),
+                                                cells.ravel())), shape=(n, n))
+    count, labels = connected_components(star, directed=False)
+    held = np.zeros(count, dtype=bool)
+    held[labels[np.asarray(dirichlet_nodes, dtype=np.int64)]] = True
+    if not held.all():
+        node = int(np.flatnonzero(~held[labels])[0])
+        raise CaseError(f"{np.count_nonzero(~held)} of the {count} connected pieces of the body "
+                        f"touch no Dirichlet edge (e.g. node {node} at "
+                        f"{mesh.points[node].tolist()}), so they float freely; allowed: every "
+                        "piece clamped on some edge", file=source, key="boundary.dirichlet")

@@ -1,0 +1,158 @@
+"""Reference finite elements (P1, P2, Q1, Q2) with node order as in gmsh.
+
+Each element gives its reference nodes ``doflocs``, shape functions and gradients on the
+reference cell, and a quadrature rule that integrates the stiffness integrand exactly on
+straight-sided triangles (P1, P2) and parallelograms (Q1, Q2). Reference cells: the triangle
+(0,0), (1,0), (0,1) and the square [-1, 1]^2. Facets (edges) use the interval [-1, 1] with
+local nodes ordered end, end, midpoint.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import CaseError
+
+
+def _lagrange_1d(s: np.ndarray, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """1D Lagrange basis on ``nodes`` at points ``s``: values and derivatives (n_nodes, n_s)."""
+    s = np.asarray(s, dtype=float)
+    n = len(nodes)
+    values = np.ones((n, s.size))
+    derivs = np.zeros((n, s.size))
+    for j in range(n):
+        others = [m for m in range(n) if m != j]
+        for m in others:
+            values[j] *= (s - nodes[m]) / (nodes[j] - nodes[m])
+        for m in others:
+            term = np.full(s.size, 1.0 / (nodes[j] - nodes[m]))
+            for k in others:
+                if k != m:
+                    term *= (s - nodes[k]) / (nodes[j] - nodes[k])
+            derivs[j] += term
+    return values, derivs
+
+
+def gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``n``-point Gauss-Legendre rule on [-1, 1] (exact for degree 2n - 1)."""
+    return np.polynomial.legendre.leggauss(n)
+
+
+def facet_quadrature(order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rule on [-1, 1] exact for (facet shape) x (facet shape) on straight facets of ``order``."""
+    return gauss_legendre(order + 1)
+
+
+def facet_shape(s: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Facet shape functions at ``s`` in [-1, 1], nodes (end, end[, mid]): values, d/ds."""
+    nodes = np.array([-1.0, 1.0]) if order == 1 else np.array([-1.0, 1.0, 0.0])
+    return _lagrange_1d(s, nodes)
+
+
+class Element:
+    """Base class: subclasses set the attributes and implement :meth:`shape`."""
+
+    name: str
+    n_local: int
+    order: int
+    reference: str
+    doflocs: np.ndarray
+
+    def shape(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Values (n_local, n_qp) and reference gradients (n_local, n_qp, 2) at ``xi`` (n_qp, 2)."""
+        raise NotImplementedError
+
+    def quadrature(self) -> tuple[np.ndarray, np.ndarray]:
+        """Points (n_qp, 2) and weights (n_qp,) on the reference cell."""
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+
+class P1(Element):
+    name, n_local, order, reference = "P1", 3, 1, "triangle"
+    doflocs = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+
+    def shape(self, xi):
+        x, y = np.asarray(xi, dtype=float).T
+        values = np.array([1.0 - x - y, x, y])
+        grads = np.broadcast_to(
+            np.array([[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]])[:, None, :], (3, len(x), 2)
+        ).copy()
+        return values, grads
+
+    def quadrature(self):
+        return np.array([[1.0 / 3.0, 1.0 / 3.0]]), np.array([0.5])
+
+
+class P2(Element):
+    name, n_local, order, reference = "P2", 6, 2, "triangle"
+    doflocs = np.array(
+        [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.5, 0.0], [0.5, 0.5], [0.0, 0.5]]
+    )
+
+    def shape(self, xi):
+        x, y = np.asarray(xi, dtype=float).T
+        lam = np.array([1.0 - x - y, x, y])  # barycentric coordinates (3, n_qp)
+        dlam = np.array([[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]])  # (3, 2)
+        values = np.empty((6, len(x)))
+        grads = np.empty((6, len(x), 2))
+        for i in range(3):
+            values[i] = lam[i] * (2.0 * lam[i] - 1.0)
+            grads[i] = (4.0 * lam[i] - 1.0)[:, None] * dlam[i]
+        for k, (i, j) in enumerate([(0, 1), (1, 2), (2, 0)]):
+            values[3 + k] = 4.0 * lam[i] * lam[j]
+            grads[3 + k] = 4.0 * (lam[i][:, None] * dlam[j] + lam[j][:, None] * dlam[i])
+        return values, grads
+
+    def quadrature(self):
+        points = np.array([[1 / 6, 1 / 6], [2 / 3, 1 / 6], [1 / 6, 2 / 3]])
+        return points, np.full(3, 1.0 / 6.0)
+
+
+class _TensorQuad(Element):
+    """Lagrange tensor-product element on [-1, 1]^2 with nodes at ``doflocs``."""
+
+    reference = "quad"
+
+    def shape(self, xi):
+        xi = np.asarray(xi, dtype=float)
+        nodes = np.linspace(-1.0, 1.0, self.order + 1)
+        vx, dx = _lagrange_1d(xi[:, 0], nodes)
+        vy, dy = _lagrange_1d(xi[:, 1], nodes)
+        ix = np.rint((self.doflocs[:, 0] + 1.0) * self.order / 2.0).astype(int)
+        iy = np.rint((self.doflocs[:, 1] + 1.0) * self.order / 2.0).astype(int)
+        values = vx[ix] * vy[iy]
+        grads = np.stack([dx[ix] * vy[iy], vx[ix] * dy[iy]], axis=-1)
+        return values, grads
+
+    def quadrature(self):
+        s, w = gauss_legendre(self.order + 1)
+        sx, sy = np.meshgrid(s, s, indexing="ij")
+        return np.column_stack([sx.ravel(), sy.ravel()]), np.outer(w, w).ravel()
+
+
+class Q1(_TensorQuad):
+    name, n_local, order = "Q1", 4, 1
+    doflocs = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+
+
+class Q2(_TensorQuad):
+    name, n_local, order = "Q2", 9, 2
+    doflocs = np.array(
+        [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0],
+         [0.0, -1.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, 0.0]]
+    )
+
+
+ELEMENTS: dict[str, Element] = {"P1": P1(), "P2": P2(), "Q1": Q1(), "Q2": Q2()}
+
+
+def get_element(name: str) -> Element:
+    """The element called ``name``; :class:`CaseError` listing the allowed names otherwise."""
+    try:
+        return ELEMENTS[name]
+    except (KeyError, TypeError):
+        allowed = ", ".join(ELEMENTS)
+        raise CaseError(f"unknown element {name!r}; allowed: {allowed}") from None

@@ -1,0 +1,87 @@
+"""Consistent nodal loads: tractions on boundary facets and body forces."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import CaseError
+from ..meshing.mesh import Mesh
+from .assembly import cell_geometry
+from .elements import facet_quadrature, facet_shape, get_element
+
+
+def traction_load(mesh: Mesh, edge_name: str, traction) -> np.ndarray:
+    """Consistent nodal load (2 * n_nodes,) of a constant traction vector on edge group
+    ``edge_name`` (facets (n, 2): end, end or (n, 3): end, end, midpoint)."""
+    if edge_name not in mesh.edges:
+        raise CaseError(
+            f"unknown edge group {edge_name!r}; mesh has: {', '.join(sorted(mesh.edges)) or 'none'}"
+        )
+    facets = np.asarray(mesh.edges[edge_name], dtype=np.int64)
+    if facets.ndim != 2 or facets.shape[1] not in (2, 3):
+        raise CaseError(f"edge group {edge_name!r} has shape {facets.shape}; need (n, 2) or (n, 3)")
+    order = facets.shape[1] - 1
+    s, w = facet_quadrature(order)
+    values, derivs = facet_shape(s, order)  # (n_fnodes, n_qp)
+    X = np.asarray(mesh.points, dtype=float)[facets]  # (n_facets, n_fnodes, 2)
+    jac = np.linalg.norm(np.einsum("fai,aq->fqi", X, derivs), axis=-1)  # |dx/ds|
+    weights = np.einsum("fq,q,aq->fa", jac, w, values)  # int N_a ds per facet node
+    return _scatter(mesh.n_nodes, facets, weights, traction)
+
+
+def body_force_load(mesh: Mesh, f) -> np.ndarray:
+    """Consistent nodal load (2 * n_nodes,) of a constant body force ``f`` (force / area)."""
+    element = get_element(mesh.element)
+    xi, w = element.quadrature()
+    values, det, _ = cell_geometry(mesh, xi)
+    weights = np.einsum("cq,q,aq->ca", det, w, values)  # int N_a dx per cell node
+    return _scatter(mesh.n_nodes, np.asarray(mesh.cells), weights, f)
+
+
+def _scatter(n_nodes: int, nodes: np.ndarray, weights: np.ndarray, vector) -> np.ndarray:
+    """Sum ``weights[e, a] * vector`` into the interleaved load at node ``nodes[e, a]``."""
+    vector = np.asarray(vector, dtype=float).reshape(2)
+    nodal = np.bincount(nodes.ravel(), weights=weights.ravel(), minlength=n_nodes)
+    return (nodal[:, None] * vector).ravel()
+
+
+_LOCAL_EDGES = {"P1": ([0, 1, 2], [1, 2, 0], None), "P2": ([0, 1, 2], [1, 2, 0], [3, 4, 5]),
+                "Q1": ([0, 1, 2, 3], [1, 2, 3, 0], None),
+                "Q2": ([0, 1, 2, 3], [1, 2, 3, 0], [4, 5, 6, 7])}
+
+
+def boundary_facets(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
+    """Every boundary facet (k, 2) or (k, 3) (end, end[, mid]) and its outward unit normal."""
+    a, b, mid = _LOCAL_EDGES[mesh.element]
+    cells = np.asarray(mesh.cells)
+    facets = np.stack([cells[:, a], cells[:, b]] + ([cells[:, mid]] if mid else []), axis=-1)
+    facets = facets.reshape(-1, facets.shape[-1])
+    keys = np.sort(facets[:, :2], axis=1)
+    _, inverse, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    facets = facets[count[inverse.ravel()] == 1]
+    d = mesh.points[facets[:, 1]] - mesh.points[facets[:, 0]]  # cells are counterclockwise
+    normal = np.column_stack([d[:, 1], -d[:, 0]]) / np.linalg.norm(d, axis=1)[:, None]
+    return facets, normal
+
+
+def facets_in(facets: np.ndarray, mesh: Mesh, names) -> np.ndarray:
+    """Mask of the facets that belong to the edge groups ``names``."""
+    groups = np.concatenate([np.sort(mesh.edges[n][:, :2], axis=1) for n in names])
+    keys = np.sort(facets[:, :2], axis=1) @ np.array([mesh.n_nodes, 1])
+    return np.isin(keys, groups @ np.array([mesh.n_nodes, 1]))
+
+
+def facet_load(mesh: Mesh, facets: np.ndarray, traction: np.ndarray) -> np.ndarray:
+    """Consistent nodal load (2 n_nodes,) of a traction that is constant on each facet."""
+    order = facets.shape[1] - 1
+    s, w = facet_quadrature(order)
+    values, derivs = facet_shape(s, order)
+    X = mesh.points[facets]  # (k, n_fnodes, 2)
+    jac = np.linalg.norm(np.einsum("fai,aq->fqi", X, derivs), axis=-1)
+    weights = np.einsum("fq,q,aq->fa", jac, w, values)  # int N_a ds on each facet
+    traction = np.broadcast_to(np.asarray(traction, dtype=float), (len(facets), 2))
+    out = np.zeros((mesh.n_nodes, 2))
+    for k in range(2):  # x and y components
+        out[:, k] = np.bincount(facets.ravel(), (weights * traction[:, k:k + 1]).ravel(),
+                                minlength=mesh.n_nodes)
+    return out.ravel()

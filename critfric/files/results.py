@@ -1,0 +1,116 @@
+"""Result files: one self-describing HDF5 file per solve, written atomically.
+
+Layout (``schema_version`` 1)::
+
+    /                   attrs: kind="solve", critfric_version, schema_version, case_name,
+                        case_source, case_toml (the effective case, re-runnable), case_text
+                        (the file as given), nu, E, element, size, h, n_dofs, n_contact,
+                        method (asked), solver (used), backend (linear solver), shift,
+                        count, gamma, tol, real_tol, infinite_tol, residual_tol, applications,
+                        n_infinite, seconds, timings (JSON), warnings (JSON), notes (JSON),
+                        normal, tangent
+    /eigen/alpha        complex, every finite eigenvalue computed, sorted by modulus
+    /critical/positive  real eigenvalues > 0, sorted
+    /critical/negative  real eigenvalues < 0, sorted by |alpha|
+    /modes/<name>       name = positive_0, negative_0, ...; datasets phi (n_nodes, 2),
+                        theta_n (p,), theta_t (p,) (nodal contact forces X = F(theta_n),
+                        Y = F(theta_t)); attrs alpha, residual
+    /mesh/points (n, 2), /mesh/cells (n_cells, n_local) attrs element,
+    /mesh/contact_nodes (p,), /mesh/edges/<name> (n_facets, 2 or 3)
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .._version import __version__
+from ..errors import CaseError
+from ..solvers.eigen import INFINITE_TOL, RESIDUAL_TOL
+from .safety import atomic_h5, check_output
+
+SCHEMA_VERSION = 1
+
+
+def default_output(case) -> Path:
+    return Path(case.output["file"] or f"{case.name}.h5")
+
+
+def write_result(result, path: Path | str, *, force: bool = False) -> Path:
+    """Write a :class:`critfric.solve.Result` to ``path`` (atomically)."""
+    path = check_output(Path(path), force=force)
+    case, s = result.case, result.case.solve
+
+    def fill(f: h5py.File) -> None:
+        a = f.attrs
+        a.update({
+            "kind": "solve", "critfric_version": __version__, "schema_version": SCHEMA_VERSION,
+            "case_name": case.name, "case_source": case.source, "case_toml": case.to_toml(),
+            "case_text": case.text, "nu": result.nu, "E": result.E, "element": result.element,
+            "size": np.nan if result.size is None else result.size, "h": result.h,
+            "n_dofs": result.n_dofs, "n_contact": result.n_contact, "method": s["method"],
+            "solver": result.solver, "backend": result.backend, "shift": s["shift"], "count": s["count"],
+            "gamma": s["gamma"], "tol": s["tol"], "real_tol": s["real_tol"],
+            "infinite_tol": INFINITE_TOL, "residual_tol": RESIDUAL_TOL,
+            "applications": result.applications, "n_infinite": result.n_infinite,
+            "seconds": result.seconds, "timings": json.dumps(result.timings),
+            "warnings": json.dumps(result.warnings),
+            "notes": json.dumps(result.notes), "normal": result.normal,
+            "tangent": np.array([-result.normal[1], result.normal[0]]),
+        })
+        f["eigen/alpha"] = result.alpha.astype(np.complex128)
+        f["critical/positive"] = np.asarray(result.positive, dtype=np.float64)
+        f["critical/negative"] = np.asarray(result.negative, dtype=np.float64)
+        modes = f.create_group("modes")
+        counters = {"positive": 0, "negative": 0}
+        if case.output["modes"]:
+            for mode in result.modes:
+                family = "positive" if mode["alpha"] > 0 else "negative"
+                g = modes.create_group(f"{family}_{counters[family]}")
+                counters[family] += 1
+                g["phi"], g["theta_n"], g["theta_t"] = mode["phi"], mode["theta_n"], mode["theta_t"]
+                g.attrs["alpha"], g.attrs["residual"] = mode["alpha"], mode["residual"]
+        mesh = result.mesh
+        f["mesh/points"] = mesh.points
+        f["mesh/cells"] = mesh.cells
+        f["mesh/cells"].attrs["element"] = mesh.element
+        f["mesh/contact_nodes"] = result.contact_nodes
+        for name, facets in mesh.edges.items():
+            f[f"mesh/edges/{name}"] = facets
+
+    return atomic_h5(path, fill)
+
+
+def file_attrs(f: h5py.File, kind: str, path: Path) -> dict:
+    """The root attributes of a critfric file of ``kind`` ("solve", "sweep"), strings as str;
+    a file of another kind is a CaseError."""
+    if f.attrs.get("kind") != kind:
+        raise CaseError(f"is not a critfric {kind} file (no kind = '{kind}' attribute)",
+                        file=str(path))
+    return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
+
+
+def read_summary(path: Path | str) -> dict:
+    """The JSON-style summary of a solve file (as ``critfric solve --json`` prints it)."""
+    path = Path(path)
+    try:
+        with h5py.File(path, "r") as f:
+            a = file_attrs(f, "solve", path)
+            alpha = f["eigen/alpha"][()]
+            pos, neg = f["critical/positive"][()], f["critical/negative"][()]
+            size = float(a["size"])
+            return {
+                "case": str(a["case_name"]), "positive": pos.tolist(),
+                "negative": neg.tolist(),
+                "complex_count": int(len(alpha) - len(pos) - len(neg)),
+                "n_dofs": int(a["n_dofs"]), "n_contact": int(a["n_contact"]),
+                "element": str(a["element"]), "nu": float(a["nu"]), "h": float(a["h"]),
+                "size": None if np.isnan(size) else size, "method": str(a["solver"]),
+                "backend": str(a.get("backend", "scipy")),
+                "seconds": float(a["seconds"]), "warnings": json.loads(a["warnings"]),
+            }
+    except (OSError, KeyError) as exc:
+        raise CaseError(f"cannot read this result file ({exc})", file=str(path)) from None

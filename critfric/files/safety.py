@@ -1,0 +1,146 @@
+"""Files written safely: output checks, atomic HDF5 writes, write locks, Ctrl-C that is never lost."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import signal
+import sys
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+import h5py
+
+from ..errors import CaseError
+
+
+class interrupt_guard:
+    """Ctrl-C that is never lost. SIGINT raises KeyboardInterrupt as usual and also sets a flag;
+    :meth:`check` raises it again at a safe point. CPython drops (and prints) an exception
+    raised inside a garbage-collection callback or ``__del__``: there the interrupt is kept
+    silently for :meth:`check`. A no-op outside the main thread or if SIGINT is ignored."""
+
+    def __enter__(self) -> "interrupt_guard":
+        self.hit = False
+        self._saved = None
+        try:
+            if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
+                self._saved = signal.signal(signal.SIGINT, self._handler)
+        except ValueError:  # not the main thread
+            return self
+        self._hook = sys.unraisablehook
+        sys.unraisablehook = self._unraisable
+        return self
+
+    def _handler(self, signum, frame):
+        self.hit = True
+        raise KeyboardInterrupt
+
+    def _unraisable(self, info) -> None:
+        if not (self.hit and issubclass(info.exc_type, KeyboardInterrupt)):
+            self._hook(info)
+
+    def check(self) -> None:
+        """Raise KeyboardInterrupt if Ctrl-C was pressed, even if it was swallowed."""
+        if self.hit:
+            raise KeyboardInterrupt
+
+    def __exit__(self, *exc) -> None:
+        if self._saved is not None:
+            signal.signal(signal.SIGINT, self._saved)
+            sys.unraisablehook = self._hook
+
+
+@contextmanager
+def output_lock(path: Path | str):
+    """Hold an exclusive lock for writing ``path``; refuse at once if another process has it.
+
+    The lock is ``fcntl.flock`` on ``.<name>.lock`` in the same directory (so a killed writer
+    never blocks a later run); the file is removed when the lock is released.
+    """
+    path = Path(path)
+    lock = path.with_name(f".{path.name}.lock")
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise CaseError(f"cannot write in directory {str(path.parent)!r} ({exc.strerror}); "
+                            "allowed: a file in a writable directory", file=str(path),
+                            key="output.file") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.read(fd, 64).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
+            raise CaseError(f"is being written by another critfric process (pid {holder}); "
+                            "wait for it to finish or choose another output file",
+                            file=str(path), key="output.file") from None
+        try:  # the lock file may have been removed by its previous holder: start again
+            same = os.stat(lock).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        os.ftruncate(fd, 0)
+        os.write(fd, str(os.getpid()).encode())
+        yield path
+    finally:
+        try:
+            os.unlink(lock)
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+
+
+def check_output(path: Path, *, force: bool = False) -> Path:
+    """Refuse an output path that cannot be written, before any work is done."""
+    path = Path(path)
+    try:
+        os.stat(path)
+    except FileNotFoundError:
+        pass
+    except (OSError, ValueError) as exc:  # name too long, a file used as a directory, NUL
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise CaseError(f"cannot write this path ({why}); allowed: a file path in an existing "
+                        "writable directory", file=str(path), key="output.file") from None
+    if path.is_dir():
+        raise CaseError("is a directory; allowed: a file path for the HDF5 result",
+                        file=str(path), key="output.file")
+    if path.exists() and not force:
+        raise CaseError("exists already; pass --force to overwrite it", file=str(path),
+                        key="output.file")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise CaseError(f"directory {str(parent)!r} does not exist", file=str(path),
+                        key="output.file")
+    if not os.access(parent, os.W_OK):
+        raise CaseError(f"directory {str(parent)!r} is not writable", file=str(path),
+                        key="output.file")
+    return path
+
+
+def atomic_h5(path: Path, fill) -> Path:
+    """Write an HDF5 file through a temporary file in the same directory, then rename."""
+    path = Path(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name[:200]}.", suffix=".tmp",
+                                   dir=path.parent or ".")
+    except OSError as exc:
+        raise CaseError(f"cannot write in this directory ({exc.strerror})", file=str(path),
+                        key="output.file") from None
+    os.close(fd)
+    try:
+        with h5py.File(tmp, "w") as f:
+            fill(f)
+        os.replace(tmp, path)
+    except OSError as exc:  # disk full, quota, file system gone: nothing partial is left
+        Path(tmp).unlink(missing_ok=True)
+        raise CaseError(f"cannot write the result file ({exc})", file=str(path),
+                        key="output.file") from None
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path

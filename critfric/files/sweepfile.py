@@ -1,0 +1,193 @@
+"""The sweep file: one HDF5 file, appended one point at a time, resumable.
+
+Layout (``schema_version`` 1)::
+
+    /            attrs: kind="sweep", critfric_version, schema_version, case_name,
+                 case_source, case_toml (the effective case), grid (JSON: nu, size, element),
+                 count, notes (JSON)
+    /points/     parallel 1-D datasets, one row per finished point, in the order finished:
+                 nu, size (NaN for an inline mesh), element, h, n_dofs, n_contact,
+                 positive (n, count) and negative (n, count) (lowest first, NaN-padded),
+                 complex_count, seconds, status ("ok", "no-real-eigenvalue", "failed: ...")
+    /limits/     written at the end of a sweep: nu, element, family, limit, order, error,
+                 n_sizes, status
+
+Every write (:func:`append_point`, :func:`write_limits`) goes to a copy of the file that then
+replaces it atomically: HDF5 itself is not crash-safe (a process killed inside a write can
+leave a file that no longer opens), a rename is. So a sweep killed at any moment keeps every
+point it had finished, and readers never see a half-written file. The copy costs O(file size)
+per point: a few ms for thousands of points. The number of finished rows is the length of
+``points/status``, written last. Only the parent (or the Dask client) writes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .._version import __version__
+from ..errors import CaseError
+from .results import file_attrs
+from .safety import atomic_h5
+
+SCHEMA_VERSION = 1
+STR = h5py.string_dtype()
+FLOAT_COLUMNS = ("nu", "size", "h", "seconds")
+INT_COLUMNS = ("n_dofs", "n_contact", "complex_count")
+STR_COLUMNS = ("element",)  # "status" is separate: it is written last
+
+
+def open_sweep(path: Path, *, case, grid, force: bool = False) -> set[tuple]:
+    """Create the sweep file, or check that an existing one is for the same case and grid;
+    return the keys (element, size, nu) of the points already in it."""
+    path = Path(path)
+    toml, grid_json = case.to_toml(), json.dumps(grid.to_json())
+    if path.is_dir():
+        raise CaseError("is a directory; allowed: a file path for the sweep file",
+                        file=str(path), key="--output")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir() or not os.access(parent, os.W_OK):
+        raise CaseError(f"directory {str(parent)!r} does not exist or is not writable",
+                        file=str(path), key="--output")
+    if path.exists() and not force:
+        try:
+            with h5py.File(path, "r") as f:
+                kind = f.attrs.get("kind")
+                same = f.attrs.get("case_toml") == toml and f.attrs.get("grid") == grid_json
+        except OSError as exc:
+            raise CaseError(f"exists and cannot be read as a sweep file ({exc}); pass --force "
+                            "to overwrite it", file=str(path), key="--output") from None
+        if kind != "sweep":
+            raise CaseError("exists and is not a sweep file; pass --force to overwrite it",
+                            file=str(path), key="--output")
+        if not same:
+            raise CaseError("was written for another case or grid (nu, size, element, "
+                            "count, grading); pass --force to discard it and start over, or "
+                            "choose another --output", file=str(path), key="--output")
+        return {_key(r) for r in read_sweep(path)["rows"]}
+    count = int(case.solve["count"])
+
+    def fill(f: h5py.File) -> None:
+        f.attrs.update({
+            "kind": "sweep", "critfric_version": __version__, "schema_version": SCHEMA_VERSION,
+            "case_name": case.name, "case_source": case.source, "case_toml": toml,
+            "grid": grid_json, "count": count, "notes": json.dumps(grid.notes),
+        })
+        g = f.create_group("points")
+        for name in FLOAT_COLUMNS:
+            g.create_dataset(name, (0,), np.float64, maxshape=(None,), chunks=(256,))
+        for name in INT_COLUMNS:
+            g.create_dataset(name, (0,), np.int64, maxshape=(None,), chunks=(256,))
+        for name in STR_COLUMNS + ("status",):
+            g.create_dataset(name, (0,), STR, maxshape=(None,), chunks=(256,))
+        for name in ("positive", "negative"):
+            g.create_dataset(name, (0, count), np.float64, maxshape=(None, count),
+                             chunks=(256, count), fillvalue=np.nan)
+
+    atomic_h5(path, fill)
+    return set()
+
+
+@contextmanager
+def _rewrite(path: Path) -> Iterator[h5py.File]:
+    """A copy of the file opened for writing; it replaces the file (``os.replace``, atomic)
+    only once written and closed, so a process killed at any moment leaves the old file or
+    the new one, never a torn one (a stray ``.<name>.*.tmp`` at worst)."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        shutil.copy(path, tmp)
+        with h5py.File(tmp, "r+") as f:
+            yield f
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def append_point(path: Path, row: dict) -> None:
+    """Append one finished point: the only write of a point to the file (atomic)."""
+    with _rewrite(Path(path)) as f:
+        g = f["points"]
+        n = len(g["status"])
+        count = g["positive"].shape[1]
+        for name in FLOAT_COLUMNS + INT_COLUMNS + STR_COLUMNS + ("positive", "negative"):
+            g[name].resize(n + 1, axis=0)
+        for name in FLOAT_COLUMNS:
+            g[name][n] = math.nan if row[name] is None else row[name]
+        for name in INT_COLUMNS + STR_COLUMNS:
+            g[name][n] = row[name]
+        for name in ("positive", "negative"):
+            values = np.full(count, np.nan)
+            values[: len(row[name])] = row[name][:count]
+            g[name][n] = values
+        g["status"].resize(n + 1, axis=0)
+        g["status"][n] = row["status"]
+
+
+def read_sweep(path: Path) -> dict:
+    """Attributes, finished rows and limits of a sweep file."""
+    path = Path(path)
+    try:
+        with h5py.File(path, "r") as f:
+            attrs = file_attrs(f, "sweep", path)
+            g = f["points"]
+            n = len(g["status"])
+            cols = {name: g[name][:n] for name in g}
+            limits = _read_table(f["limits"]) if "limits" in f else []
+    except (OSError, KeyError) as exc:
+        raise CaseError(f"cannot read this sweep file ({exc})", file=str(path)) from None
+    rows = []
+    for i in range(n):
+        row = {name: _scalar(cols[name][i]) for name in FLOAT_COLUMNS + INT_COLUMNS
+               + STR_COLUMNS + ("status",)}
+        row["size"] = None if math.isnan(row["size"]) else row["size"]
+        for name in ("positive", "negative"):
+            v = cols[name][i]
+            row[name] = [float(x) for x in v[np.isfinite(v)]]
+        rows.append(row)
+    return {"attrs": attrs, "rows": rows, "limits": limits}
+
+
+def write_limits(path: Path, limits) -> None:
+    """Replace the /limits table (atomic)."""
+    with _rewrite(Path(path)) as f:
+        if "limits" in f:
+            del f["limits"]
+        g = f.create_group("limits")
+        data = [lim.to_row() for lim in limits]
+        for name in ("nu", "limit", "order", "error"):
+            g[name] = np.array([d[name] for d in data], dtype=np.float64)
+        g["n_sizes"] = np.array([d["n_sizes"] for d in data], dtype=np.int64)
+        for name in ("element", "family", "status"):
+            g.create_dataset(name, data=[d[name] for d in data], dtype=STR)
+
+
+def _read_table(g) -> list[dict]:
+    names = list(g)
+    n = len(g[names[0]]) if names else 0
+    cols = {name: g[name][()] for name in names}
+    return [{name: _scalar(cols[name][i]) for name in names} for i in range(n)]
+
+
+def _scalar(v):
+    if isinstance(v, bytes):
+        return v.decode()
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.floating):
+        return float(v)
+    return v
+
+
+def _key(row: dict) -> tuple:
+    return (row["element"], -1.0 if row["size"] is None else row["size"], row["nu"])

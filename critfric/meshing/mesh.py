@@ -1,0 +1,371 @@
+"""Meshes: points, cells and named boundary edges."""
+
+from __future__ import annotations
+
+import math
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import CaseError, CritfricError, SolverError
+from .geometry import Polygon, collinear_run, mesh_size_estimate, positive_number, validate
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """A 2D finite-element mesh.
+
+    points : (n_nodes, 2) float64 node coordinates.
+    cells  : (n_cells, n_local) int64 node indices, local order as in gmsh
+             (P1: 3 vertices counterclockwise; P2: 3 vertices then edge midpoints 01, 12, 20;
+              Q1: 4 vertices counterclockwise; Q2: 4 vertices, midpoints 01, 12, 23, 30, centre).
+    element: "P1" | "P2" | "Q1" | "Q2".
+    edges  : boundary group name -> (n_facets, 2) int64 (order 1) or (n_facets, 3) (order 2:
+             end, end, midpoint) node indices of the boundary facets in that group.
+    """
+
+    points: np.ndarray
+    cells: np.ndarray
+    element: str
+    edges: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.points)
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.cells)
+
+    def edge_nodes(self, names) -> np.ndarray:
+        """Sorted unique node indices on the boundary groups ``names``."""
+        parts = [self.edges[name].ravel() for name in names]
+        return np.unique(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.int64)
+
+
+# ---------------------------------------------------------------------------------------------
+# element tables (gmsh local node order)
+
+ELEMENTS = ("P1", "P2", "Q1", "Q2")
+_N_VERTICES = {"P1": 3, "P2": 3, "Q1": 4, "Q2": 4}
+_ORDER = {"P1": 1, "P2": 2, "Q1": 1, "Q2": 2}
+_GMSH_CELL = {"P1": 2, "P2": 9, "Q1": 3, "Q2": 10}  # triangle, triangle6, quadrangle, quadrangle9
+_GMSH_LINE = {1: 1, 2: 8}  # line, line3
+_N_LOCAL = {"P1": 3, "P2": 6, "Q1": 4, "Q2": 9}
+# local permutation reversing a cell's orientation (keeps vertex 0, midpoints follow their edge)
+_FLIP = {"P1": [0, 2, 1], "P2": [0, 2, 1, 5, 4, 3],
+         "Q1": [0, 3, 2, 1], "Q2": [0, 3, 2, 1, 7, 6, 5, 4, 8]}
+#: unstructured meshes above this many estimated vertices are meshed coarser, then split
+#: uniformly (gmsh refine) until they reach ``size``: same quality, ~10x faster for 1e6 DOFs
+REFINE_ABOVE = 60_000
+
+
+def _check_element(element) -> str:
+    if element not in ELEMENTS:
+        raise CaseError(f"unknown element {element!r}; allowed: {', '.join(ELEMENTS)}",
+                        key="mesh.element")
+    return element
+
+
+def signed_areas(points: np.ndarray, cells: np.ndarray, element: str) -> np.ndarray:
+    """Shoelace area of each cell's vertex polygon (positive when counterclockwise)."""
+    v = points[cells[:, : _N_VERTICES[element]]]  # (n_cells, nv, 2)
+    w = np.roll(v, -1, axis=1)
+    return 0.5 * np.sum(v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0], axis=1)
+
+
+def _orient(points, cells, element):
+    """Cells reordered counterclockwise, and their (signed-before-flip) areas."""
+    area = signed_areas(points, cells, element)
+    cells = cells.copy()
+    cw = area < 0
+    cells[cw] = cells[cw][:, _FLIP[element]]
+    return cells, area
+
+
+# ---------------------------------------------------------------------------------------------
+# gmsh
+
+
+@contextmanager
+def _gmsh_session():
+    """A silent gmsh session with a fresh model; always finalized (or the model removed when
+    gmsh was already initialized by the caller)."""
+    import gmsh  # imported lazily: only meshing needs the gmsh library
+
+    owner = not gmsh.isInitialized()
+    if owner:
+        try:  # interruptible=False: leave Python's SIGINT handler alone
+            gmsh.initialize(argv=["critfric"], readConfigFiles=False, interruptible=False)
+        except TypeError:  # older gmsh without the keyword
+            gmsh.initialize(argv=["critfric"], readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("General.Verbosity", 1)
+        # threads gain < 10% on a single surface and make meshes non-reproducible
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.model.add("critfric")
+        yield
+    finally:
+        if owner:
+            gmsh.finalize()
+        else:
+            gmsh.model.remove()
+
+
+def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = False,
+               grading: float | None = None, contact=None) -> Mesh:
+    """Mesh ``poly`` with gmsh (built-in kernel); one edge group per edge name.
+
+    size      : target element size (edge length).
+    element   : "P1", "P2" (straight 6-node triangles), "Q1", "Q2" (9-node quads).
+    structured: transfinite mesh of a 4-vertex polygon, ceil(length / size) subdivisions per
+                edge (the larger count of each pair of opposite edges).
+    grading   : g in (0, 1]: size g*size at both ends of the straight run of the ``contact``
+                edges, growing linearly to ``size`` at half the run's length from them.
+    contact   : edge name or names of the contact boundary (needed by ``grading``).
+    """
+    import gmsh
+
+    _check_element(element)
+    validate(poly)
+    h = positive_number(size, "mesh.size")
+    if structured and poly.n_vertices != 4:
+        raise CaseError(f"a structured mesh needs a 4-vertex polygon, got {poly.n_vertices} "
+                        "vertices", key="mesh.structured")
+    ends = None
+    if grading is not None:
+        g = float(grading)
+        if not (0 < g <= 1):
+            raise CaseError(f"must be in (0, 1], got {grading!r}", key="mesh.grading")
+        if structured:
+            raise CaseError("grading is not available for structured meshes", key="mesh.grading")
+        if not contact:
+            raise CaseError("grading needs the contact edges", key="mesh.grading")
+        names = [contact] if isinstance(contact, str) else list(contact)
+        unknown = sorted(set(names) - set(poly.edge_names))
+        if unknown:
+            raise CaseError(f"unknown edge name(s) {unknown}; edges are "
+                            f"{list(poly.group_names)}", key="boundary.contact")
+        start, end, _ = collinear_run(poly.segments[poly.edge_indices(names)],
+                                      key="boundary.contact")
+        ends = [int(np.argmin(np.linalg.norm(poly.vertices - p, axis=1))) for p in (start, end)]
+        run_length = float(np.linalg.norm(end - start))
+    n_refine = 0 if structured else _refinements(poly, h, element)
+    h0 = h * 2**n_refine
+    with _gmsh_session():
+        try:
+            _build_geometry(poly, h0)
+            if structured:
+                _set_transfinite(poly, h, element)
+            else:
+                quads = element in ("Q1", "Q2")
+                gmsh.option.setNumber("Mesh.Algorithm", 8 if quads else 6)
+                gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+                gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+                gmsh.option.setNumber("Mesh.MeshSizeMax", h0)
+                gmsh.option.setNumber("Mesh.MeshSizeMin", h0 if ends is None else g * h0)
+                if quads:
+                    gmsh.option.setNumber("Mesh.RecombinationAlgorithm", 3)  # blossom full-quad
+                    gmsh.model.mesh.setRecombine(2, 1)
+                if ends is not None:
+                    _set_grading(ends, g * h0, h0, 0.5 * run_length)
+            gmsh.model.mesh.generate(2)
+            for _ in range(n_refine):
+                gmsh.model.mesh.refine()
+            if _ORDER[element] == 2:
+                gmsh.option.setNumber("Mesh.SecondOrderLinear", 1)
+                gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 0)
+                gmsh.model.mesh.setOrder(2)
+            return _extract(element)
+        except CritfricError:
+            raise
+        except Exception as exc:  # gmsh reports failures as bare Exceptions
+            raise SolverError(f"gmsh failed to mesh the polygon: {exc}; try another mesh size "
+                              "or element") from exc
+
+
+def _refinements(poly: Polygon, h: float, element: str) -> int:
+    """Number of uniform refinements: base mesh small, but not coarser than the shortest edge."""
+    est = mesh_size_estimate(poly, h, "Q1" if element[0] == "Q" else "P1")
+    seg = poly.segments
+    shortest = float(np.min(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1)))
+    by_count = math.ceil(math.log(est / REFINE_ABOVE, 4)) if est > REFINE_ABOVE else 0
+    by_geometry = max(0, math.floor(math.log2(shortest / h)))
+    return min(by_count, by_geometry)
+
+
+def _build_geometry(poly: Polygon, h: float) -> None:
+    """Points, lines, curve loop, plane surface (tag 1); physical groups per edge name."""
+    import gmsh
+
+    geo = gmsh.model.geo
+    pts = [geo.addPoint(float(x), float(y), 0.0, h) for x, y in poly.vertices]
+    nv = len(pts)
+    lines = [geo.addLine(pts[i], pts[(i + 1) % nv]) for i in range(nv)]
+    surface = geo.addPlaneSurface([geo.addCurveLoop(lines)])
+    geo.synchronize()
+    for name in poly.group_names:
+        gmsh.model.addPhysicalGroup(1, [lines[i] for i in poly.edge_indices(name)], name=name)
+    gmsh.model.addPhysicalGroup(2, [surface], name="domain")
+
+
+def _set_transfinite(poly: Polygon, h: float, element: str) -> None:
+    import gmsh
+
+    seg = poly.segments
+    n = np.ceil(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) / h - 1e-9).astype(int)
+    n = np.maximum(n, np.roll(n, 2))  # opposite edges need the same count
+    for curve, count in enumerate(n, start=1):
+        gmsh.model.mesh.setTransfiniteCurve(curve, int(count) + 1)
+    # "Alternate" diagonals: no preferred direction (one-way diagonals bias the eigenvalues)
+    gmsh.model.mesh.setTransfiniteSurface(1, "Alternate", cornerTags=[1, 2, 3, 4])
+    if element in ("Q1", "Q2"):
+        gmsh.model.mesh.setRecombine(2, 1)
+
+
+def _set_grading(end_points, h_min: float, h_max: float, dist_max: float) -> None:
+    import gmsh
+
+    field = gmsh.model.mesh.field
+    dist = field.add("Distance")
+    field.setNumbers(dist, "PointsList", [i + 1 for i in end_points])
+    thr = field.add("Threshold")
+    field.setNumber(thr, "InField", dist)
+    field.setNumber(thr, "SizeMin", h_min)
+    field.setNumber(thr, "SizeMax", h_max)
+    field.setNumber(thr, "DistMin", 0.0)
+    field.setNumber(thr, "DistMax", dist_max)
+    field.setAsBackgroundMesh(thr)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+
+
+def _extract(element: str) -> Mesh:
+    """Current gmsh mesh as a Mesh: compact numbering, unused nodes dropped, cells ccw."""
+    import gmsh
+
+    cell_type = _GMSH_CELL[element]
+    types = set(int(t) for t in gmsh.model.mesh.getElementTypes(2))
+    if types != {cell_type}:
+        raise SolverError(f"gmsh produced surface element types {sorted(types)}, expected only "
+                          f"{cell_type} for {element}; try a different mesh size or P1/P2")
+    _, cell_tags = gmsh.model.mesh.getElementsByType(cell_type)
+    cell_tags = np.asarray(cell_tags, dtype=np.int64).reshape(-1, _N_LOCAL[element])
+    node_tags, coords, _ = gmsh.model.mesh.getNodes()
+    node_tags = np.asarray(node_tags, dtype=np.int64)
+    position = np.empty(node_tags.max() + 1, dtype=np.int64)
+    position[node_tags] = np.arange(len(node_tags))
+    used = np.unique(cell_tags)
+    points = np.asarray(coords, dtype=np.float64).reshape(-1, 3)[position[used], :2]
+    lookup = np.full(node_tags.max() + 1, -1, dtype=np.int64)
+    lookup[used] = np.arange(len(used))
+    cells, area = _orient(points, lookup[cell_tags], element)
+    if np.any(np.abs(area) <= 1e-12 * np.max(np.abs(area))):
+        raise SolverError("gmsh produced degenerate cells; try a different mesh size")
+
+    line_type = _GMSH_LINE[_ORDER[element]]
+    edges = {}
+    for dim, group in gmsh.model.getPhysicalGroups(1):
+        parts = [np.asarray(gmsh.model.mesh.getElementsByType(line_type, int(curve))[1],
+                            dtype=np.int64)
+                 for curve in gmsh.model.getEntitiesForPhysicalGroup(dim, group)]
+        facets = lookup[np.concatenate(parts).reshape(-1, _ORDER[element] + 1)]
+        if np.any(facets < 0):
+            raise SolverError("gmsh boundary nodes are not nodes of any cell")
+        edges[gmsh.model.getPhysicalName(dim, group)] = facets
+    return Mesh(points, cells, element, edges)
+
+
+# ---------------------------------------------------------------------------------------------
+# inline meshes (given in a case file)
+
+
+def inline_mesh(nodes, cells, edges: dict, element: str) -> Mesh:
+    """A mesh given explicitly: vertex ``nodes`` (n, 2), ``cells`` by their vertices only
+    (triangles for P1/P2, quads for Q1/Q2, either orientation) and named boundary ``edges``
+    {name: [[a, b], ...]}. P2/Q2 edge midpoints (and Q2 centres) are appended after the given
+    nodes. Boundary facets are oriented like their cell (domain on the left)."""
+    _check_element(element)
+    points = np.asarray(nodes, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 2 or len(points) < 3:
+        raise CaseError(f"must be at least 3 [x, y] pairs, got shape {points.shape}",
+                        key="geometry.nodes")
+    if not np.all(np.isfinite(points)):
+        raise CaseError("node coordinates must be finite numbers", key="geometry.nodes")
+    n, nv = len(points), _N_VERTICES[element]
+    ckey = "geometry.triangles" if nv == 3 else "geometry.quads"
+    cells = _index_array(cells, nv, n, ckey)
+    if len(cells) == 0:
+        raise CaseError("needs at least one cell", key=ckey)
+    if np.any(np.sort(cells, axis=1)[:, 1:] == np.sort(cells, axis=1)[:, :-1]):
+        raise CaseError("a cell repeats a node", key=ckey)
+    scale = float(np.ptp(points, axis=0).max())
+    cells, area = _orient(points, cells, "P1" if nv == 3 else "Q1")  # vertices only so far
+    bad = np.abs(area) <= 1e-12 * scale**2
+    if nv == 4:  # a quad needs a positive Jacobian at every corner: strictly convex
+        v = points[cells]
+        d = np.roll(v, -1, axis=1) - v
+        bad |= np.any(d[..., 0] * np.roll(d, -1, axis=1)[..., 1]
+                      - d[..., 1] * np.roll(d, -1, axis=1)[..., 0] <= 1e-12 * scale**2, axis=1)
+    if bad.any():
+        raise CaseError(f"cell {int(np.argmax(bad))} is degenerate"
+                        + (" or not convex" if nv == 4 else ""), key=ckey)
+    unused = np.setdiff1d(np.arange(n), cells)
+    if len(unused):
+        raise CaseError(f"node {int(unused[0])} belongs to no cell", key="geometry.nodes")
+
+    local = np.stack([np.arange(nv), np.roll(np.arange(nv), -1)], axis=1)  # (nv, 2) ccw edges
+    directed = cells[:, local].reshape(-1, 2)  # (n_cells * nv, 2)
+    keys = directed.min(axis=1) * n + directed.max(axis=1)
+    ukeys, first, inverse, count = np.unique(keys, return_index=True, return_inverse=True,
+                                             return_counts=True)
+    if np.any(count > 2):
+        raise CaseError("an edge is shared by more than two cells", key=ckey)
+    order2 = _ORDER[element] == 2
+    if order2:
+        mid = n + np.arange(len(ukeys))
+        ends = directed[first]
+        new_points = [points, 0.5 * (points[ends[:, 0]] + points[ends[:, 1]])]
+        new_cells = [cells, mid[inverse].reshape(len(cells), nv)]
+        if nv == 4:
+            new_points.append(points[cells].mean(axis=1))
+            new_cells.append(n + len(ukeys) + np.arange(len(cells))[:, None])
+        points, cells = np.concatenate(new_points), np.concatenate(new_cells, axis=1)
+
+    groups = {}
+    for name, pairs in edges.items():
+        key = f"geometry.edges.{name}"
+        pairs = _index_array(pairs, 2, n, key)
+        if len(pairs) == 0:
+            raise CaseError("needs at least one [a, b] pair", key=key)
+        wanted = pairs.min(axis=1) * n + pairs.max(axis=1)
+        at = np.minimum(np.searchsorted(ukeys, wanted), len(ukeys) - 1)
+        missing = ukeys[at] != wanted
+        interior = ~missing & (count[at] != 1)
+        if missing.any() or interior.any():
+            i = int(np.argmax(missing | interior))
+            what = "is not an edge of any cell" if missing[i] else "is an interior edge"
+            raise CaseError(f"[{pairs[i, 0]}, {pairs[i, 1]}] {what}; allowed: boundary edges "
+                            "of the cells", key=key)
+        facets = directed[first[at]]
+        groups[str(name)] = np.column_stack([facets, mid[at]]) if order2 else facets
+    return Mesh(points, cells, element, groups)
+
+
+def _index_array(value, width: int, n: int, key: str) -> np.ndarray:
+    """(k, width) int64 node indices in [0, n), else CaseError naming ``key``."""
+    try:
+        raw = np.asarray(value)
+        arr = raw.astype(np.int64)
+    except (TypeError, ValueError):
+        raise CaseError(f"must be rows of {width} node indices", key=key) from None
+    if raw.size == 0:
+        return np.zeros((0, width), dtype=np.int64)
+    if arr.ndim != 2 or arr.shape[1] != width or np.any(arr != raw):
+        raise CaseError(f"must be rows of {width} integer node indices, got shape {raw.shape}",
+                        key=key)
+    if arr.min() < 0 or arr.max() >= n:
+        raise CaseError(f"node indices must be in 0..{n - 1}, got {int(arr.min())}.."
+                        f"{int(arr.max())}", key=key)
+    return arr

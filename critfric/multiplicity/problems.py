@@ -1,0 +1,15 @@
+"""The static Coulomb problem of a case, meshed and assembled on demand."""
+
+from __future__ import annotations
+
+from ..case.schema import Case
+from ..fem.static import StaticProblem, case_problem
+from ..solve import Prepared, prepare
+
+
+def static_problem(case: Case, prepared: Prepared | None = None, *,
+                   friction: float | None = None) -> StaticProblem:
+    """The static problem (2.8) of a case's ``[load]``; ``prepared`` reuses a mesh and its
+    assembly (:func:`critfric.solve.prepare`), ``friction`` overrides ``[load] friction``."""
+    prepared = prepared if prepared is not None else prepare(case)
+    return case_problem(case, prepared.system, friction=friction)

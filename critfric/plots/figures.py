@@ -1,0 +1,340 @@
+"""Figures (PNG, matplotlib Agg, no pyplot state) of sweep and solve files, as in the paper.
+
+Sweep file ``s.h5``: ``s_critical.png`` (critical coefficient vs nu per element and size,
+with the h -> 0 limits: Figs. 4 and 7) and ``s_convergence.png`` (coefficient vs h and
+|alpha_h - limit| vs h per element on log axes at one nu: Fig. 5).
+Solve file ``r.h5``: ``r_deformed.png`` (the eigenfunction Phi, Fig. 8), ``r_von_mises.png``
+(von Mises stress of Phi, Fig. 9), ``r_contact_forces.png`` (theta_n, theta_t along Gamma_C)
+and ``r_spectrum.png`` (eigenvalues in the complex plane, real critical ones marked).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from textwrap import shorten
+
+import h5py
+import numpy as np
+from matplotlib.collections import LineCollection
+from matplotlib.figure import Figure
+from matplotlib.tri import Triangulation
+
+from ..errors import CaseError
+from ..fem.loads import traction_load
+from ..files.export import SolveData, mode_fields, read_solve
+from ..files.sweepfile import read_sweep
+
+DPI = 150
+ALPHA_LABEL = r"critical friction coefficient $\mu_{\rm cr}$"
+# local node pairs of the cell edges (through P2/Q2 midpoints), and linear sub-triangles
+_EDGES = {"P1": [(0, 1), (1, 2), (2, 0)],
+          "P2": [(0, 3), (3, 1), (1, 4), (4, 2), (2, 5), (5, 0)],
+          "Q1": [(0, 1), (1, 2), (2, 3), (3, 0)],
+          "Q2": [(0, 4), (4, 1), (1, 5), (5, 2), (2, 6), (6, 3), (3, 7), (7, 0)]}
+_TRIS = {"P1": [(0, 1, 2)], "P2": [(0, 3, 5), (3, 1, 4), (5, 4, 2), (3, 4, 5)],
+         "Q1": [(0, 1, 2), (0, 2, 3)],
+         "Q2": [(0, 4, 8), (0, 8, 7), (4, 1, 5), (4, 5, 8), (8, 5, 2), (8, 2, 6), (7, 8, 6),
+                (7, 6, 3)]}
+_STYLE = {"P1": ("tab:blue", "o"), "P2": ("tab:orange", "s"), "Q1": ("tab:green", "^"),
+          "Q2": ("tab:red", "D")}
+
+
+def plot_file(path: Path | str, *, nu: float | None = None) -> list[Path]:
+    """Write the figures of a sweep or solve file next to it; return their paths."""
+    path = Path(path)
+    try:
+        with h5py.File(path, "r") as f:
+            kind = f.attrs.get("kind")
+    except OSError as exc:
+        raise CaseError(f"cannot read this file ({exc})", file=str(path)) from None
+    if kind == "sweep":
+        return plot_sweep(path, nu=nu)
+    if kind == "solve":
+        return plot_solve(path)
+    raise CaseError("is neither a sweep nor a solve file of critfric", file=str(path))
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    fig.savefig(path, dpi=DPI, bbox_inches="tight")
+    return path
+
+
+# ------------------------------------------------------------------------------ sweeps
+def plot_sweep(path: Path, *, nu: float | None = None) -> list[Path]:
+    data = read_sweep(path)
+    rows, limits = data["rows"], data["limits"]
+    order = {el: i for i, el in enumerate(json.loads(data["attrs"]["grid"])["element"])}
+    rows = sorted(rows, key=lambda r: (order.get(r["element"], 99), r["nu"]))
+    title = f"{data['attrs'].get('case_name', '')}"
+    out = [_save(_critical_vs_nu(rows, limits, title), path.with_name(f"{path.stem}_critical.png"))]
+    sizes = {r["size"] for r in rows if r["size"] is not None}
+    if len(sizes) >= 2:
+        out.append(_save(_convergence(rows, limits, title, nu),
+                         path.with_name(f"{path.stem}_convergence.png")))
+    return out
+
+
+def _value(row: dict, family: str) -> float:
+    return row[family][0] if row["status"] == "ok" and row[family] else math.nan
+
+
+def _critical_vs_nu(rows, limits, title) -> Figure:
+    families = ["positive"] + (["negative"] if any(r["negative"] for r in rows) else [])
+    fig = Figure(figsize=(6.4 * len(families), 4.8))
+    axes = fig.subplots(1, len(families), squeeze=False)[0]
+    elements = list(dict.fromkeys(r["element"] for r in rows))
+    sizes = sorted({r["size"] for r in rows}, key=lambda s: -1 if s is None else -s)
+    for ax, family in zip(axes, families):
+        sign = 1.0 if family == "positive" else -1.0
+        for el in elements:
+            color, marker = _STYLE[el]
+            for k, size in enumerate(sizes):
+                rs = sorted((r for r in rows if r["element"] == el and r["size"] == size),
+                            key=lambda r: r["nu"])
+                x = [r["nu"] for r in rs]
+                y = [sign * _value(r, family) for r in rs]
+                shade = 0.35 + 0.65 * (k + 1) / len(sizes)
+                label = el if size is None else f"{el}, h = {size:g}"
+                ax.plot(x, y, marker=marker, ms=4, lw=1, color=color, alpha=shade, label=label)
+            lims = sorted((lim for lim in limits if lim["element"] == el
+                           and lim["family"] == family), key=lambda lim: lim["nu"])
+            if any(lim["status"] == "ok" for lim in lims):  # NaN (a gap) where not converged
+                ax.plot([lim["nu"] for lim in lims], [sign * lim["limit"] for lim in lims],
+                        ls="--", lw=2, marker="*", ms=8, color=color,
+                        label=f"{el}, h → 0 (Richardson)")
+        bad = [lim for lim in limits if lim["family"] == family and lim["status"] != "ok"]
+        notes = [f"{len(bad)} (ν, element) famil{'y' if len(bad) == 1 else 'ies'} not "
+                 "converged: no limit drawn"] if bad else []
+        missing = sorted({r["nu"] for r in rows if not r[family]})
+        if missing:
+            shown = ", ".join(f"{v:g}" for v in missing[:6]) + (", ..." if len(missing) > 6
+                                                                 else "")
+            notes.append(f"no real {family} eigenvalue found at ν = {shown}")
+        if notes:
+            ax.text(0.02, 0.02, "\n".join(notes), transform=ax.transAxes, fontsize=8)
+        ax.set_xlabel(r"Poisson ratio $\nu$")
+        what = "lowest positive eigenvalue" if family == "positive" else \
+            "|lowest negative eigenvalue|"
+        ax.set_ylabel(f"{ALPHA_LABEL}\n({what})")
+        ax.set_title(f"{title}: {what} vs ν")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def _pick_nu(rows, nu):
+    counts: dict[float, int] = {}
+    for r in rows:
+        if r["size"] is not None and not math.isnan(_value(r, "positive")):
+            counts[r["nu"]] = counts.get(r["nu"], 0) + 1
+    if not counts:
+        return rows[0]["nu"]
+    if nu is not None:
+        return min(counts, key=lambda v: abs(v - nu))
+    best = max(counts.values())
+    candidates = sorted(v for v, c in counts.items() if c == best)
+    return candidates[len(candidates) // 2]
+
+
+def _convergence(rows, limits, title, nu) -> Figure:
+    nu = _pick_nu(rows, nu)
+    elements = list(dict.fromkeys(r["element"] for r in rows))
+    found = {m["element"]: m for m in limits if m["nu"] == nu and m["family"] == "positive"}
+    with_limit = [el for el in elements if found.get(el, {}).get("status") == "ok"]
+    fig = Figure(figsize=(12.8 if with_limit else 6.4, 4.8))
+    axes = fig.subplots(1, 2 if with_limit else 1, squeeze=False)[0]
+    left = axes[0]
+    sizes = sorted({r["size"] for r in rows if r["size"] is not None}, reverse=True)
+    for el in elements:
+        color, marker = _STYLE[el]
+        rs = sorted((r for r in rows if r["element"] == el and r["nu"] == nu
+                     and r["size"] is not None), key=lambda r: -r["size"])
+        h = np.array([r["size"] for r in rs])
+        y = np.array([_value(r, "positive") for r in rs])
+        left.plot(h, y, marker=marker, color=color, label=f"{el}: computed")
+        lim = found.get(el)
+        if lim is not None and lim["status"] != "ok":
+            why = shorten(lim["status"].removeprefix("not converged: "), 60, placeholder="...")
+            left.plot([], [], " ", label=f"{el}: no limit ({why})")
+        if el not in with_limit:
+            continue
+        left.axhline(lim["limit"], color=color, ls="--", lw=1,
+                     label=f"{el}: h → 0 limit {lim['limit']:.6f} ± {lim['error']:.1e}")
+        err = np.abs(y - lim["limit"])
+        ok = np.isfinite(err) & (err > 0)
+        axes[1].plot(h[ok], err[ok], marker=marker, color=color,
+                     label=f"{el}: observed order p = {lim['order']:.2f}")
+    for ax in axes:
+        ax.set_xscale("log")
+        ax.set_xticks(sizes, [f"{v:g}" for v in sizes])
+        ax.minorticks_off()
+        ax.invert_xaxis()
+        ax.set_xlabel("mesh size h (case length units)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    left.set_ylabel(f"{ALPHA_LABEL}\n(lowest positive eigenvalue)")
+    left.set_title(f"{title}: convergence at ν = {nu:g}")
+    if with_limit:
+        axes[1].set_yscale("log")
+        axes[1].set_ylabel(r"$|\mu_{\rm cr}(h) - \mu_{\rm cr}(h \to 0)|$")
+        axes[1].set_title("distance to the extrapolated limit (log-log)")
+    fig.tight_layout()
+    return fig
+
+
+# ------------------------------------------------------------------------------ solves
+def plot_solve(path: Path) -> list[Path]:
+    data = read_solve(path)
+    stem = path.with_name(path.stem)
+    out = []
+    if data.modes:
+        name, mode = next(iter(data.modes.items()))
+        fields = mode_fields(data, mode)
+        out.append(_save(_deformed(data, name, mode, fields), Path(f"{stem}_deformed.png")))
+        out.append(_save(_von_mises(data, name, mode, fields), Path(f"{stem}_von_mises.png")))
+        out.append(_save(_contact_forces(data), Path(f"{stem}_contact_forces.png")))
+    out.append(_save(_spectrum(data), Path(f"{stem}_spectrum.png")))
+    return out
+
+
+def _label(data: SolveData, name: str, mode: dict) -> str:
+    a = data.attrs
+    return (f"{a.get('case_name', '')}, {a['element']}, ν = {float(a['nu']):g}: "
+            f"{name.replace('_', ' ')}, α = {mode['alpha']:.6g}")
+
+
+def _segments(mesh, points) -> np.ndarray:
+    pairs = np.asarray(mesh.cells)[:, np.array(_EDGES[mesh.element])].reshape(-1, 2)
+    pairs = np.unique(np.sort(pairs, axis=1), axis=0)
+    return points[pairs]  # (n_segments, 2, 2)
+
+
+def _boundary(data: SolveData, points, names=None) -> np.ndarray:
+    edges = data.mesh.edges
+    chosen = [e for n, e in edges.items() if names is None or n in names]
+    if not chosen:
+        return np.zeros((0, 2, 2))
+    facets = np.concatenate([e[:, :2] if e.shape[1] == 2 else e[:, [0, 2, 2, 1]].reshape(-1, 2)
+                             for e in chosen])
+    return points[facets]
+
+
+def _deformed(data, name, mode, fields) -> Figure:
+    mesh = data.mesh
+    extent = float(np.ptp(mesh.points, axis=0).max())
+    scale = 0.1 * extent  # fields["phi"] has max |Phi| = 1
+    moved = mesh.points + scale * fields["phi"]
+    fig = Figure(figsize=(6.4, 6.4))
+    ax = fig.subplots()
+    ax.add_collection(LineCollection(_boundary(data, mesh.points), colors="0.6", lw=1,
+                                     linestyles="--", label="undeformed boundary"))
+    ax.add_collection(LineCollection(_segments(mesh, moved), colors="tab:blue", lw=0.4,
+                                     label=r"deformed mesh $x + s\,\Phi$"))
+    ax.add_collection(LineCollection(_boundary(data, moved, data.contact_edges),
+                                     colors="tab:red", lw=2, label=r"$\Gamma_C$"))
+    ax.autoscale_view()
+    ax.set_aspect("equal")
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_title(f"Eigenfunction Φ ({_label(data, name, mode)})\n"
+                 f"displacement scaled to max |sΦ| = {scale:.3g} (10% of the body size)",
+                 fontsize=9)
+    ax.legend(fontsize=8, loc="best")
+    return fig
+
+
+def _von_mises(data, name, mode, fields) -> Figure:
+    mesh = data.mesh
+    tris = np.asarray(mesh.cells)[:, np.array(_TRIS[mesh.element])].reshape(-1, 3)
+    tri = Triangulation(mesh.points[:, 0], mesh.points[:, 1], tris)
+    values = fields["von_mises_node"]
+    used = np.unique(tris)
+    top = float(np.percentile(values[used], 99))
+    fig = Figure(figsize=(7.2, 6.4))
+    ax = fig.subplots()
+    art = ax.tripcolor(tri, values, shading="gouraud", cmap="viridis", vmin=0.0,
+                       vmax=top if top > 0 else None)
+    bar = fig.colorbar(art, ax=ax, extend="max" if values.max() > top else "neither")
+    bar.set_label(r"von Mises stress $\sigma_{\rm VM}(\Phi)$ / E  (max |Φ| = 1)")
+    ax.add_collection(LineCollection(_boundary(data, mesh.points, data.contact_edges),
+                                     colors="tab:red", lw=2, label=r"$\Gamma_C$"))
+    ax.set_aspect("equal")
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_title(f"Von Mises stress of Φ ({_label(data, name, mode)})\n"
+                 f"colour scale capped at the 99th percentile ({top:.3g}; max "
+                 f"{values.max():.3g})", fontsize=9)
+    ax.legend(fontsize=8, loc="upper right")
+    return fig
+
+
+def _contact_forces(data: SolveData) -> Figure:
+    """Nodal contact forces X, Y divided by int N_a ds: estimates of theta_n, theta_t, for
+    the lowest positive and the lowest negative mode."""
+    mesh, nodes = data.mesh, data.contact_nodes
+    lumped = sum(traction_load(mesh, e, (1.0, 0.0))[0::2] for e in data.contact_edges)
+    w = lumped[nodes]
+    normal = np.asarray(data.attrs["normal"], dtype=float)
+    s = mesh.points[nodes] @ np.array([-normal[1], normal[0]])
+    s = s - s.min()
+    shown = [n for n in ("positive_0", "negative_0") if n in data.modes]
+    fig = Figure(figsize=(6.4 * len(shown), 4.8))
+    for ax, name in zip(fig.subplots(1, len(shown), squeeze=False)[0], shown):
+        mode = data.modes[name]
+        tn, tt = mode["theta_n"] / w, mode["theta_t"] / w
+        peak = np.max(np.abs(tn)) or 1.0
+        ax.plot(s, tn / peak, color="tab:blue", marker=".", ms=4, label=r"$\theta_n$")
+        ax.plot(s, tt / peak, color="tab:orange", marker=".", ms=4,
+                label=r"$\theta_t = \alpha\,\gamma\,\theta_n$")
+        ax.axhline(0, color="0.5", lw=0.5)
+        ax.set_xlabel(r"position s along $\Gamma_C$ (direction t, case length units)")
+        ax.set_ylabel(r"contact force density (normalised: max $|\theta_n|$ = 1)")
+        ax.set_title(f"Contact forces along Γ_C ({_label(data, name, mode)})", fontsize=9)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def _spectrum(data: SolveData) -> Figure:
+    """All eigenvalues on symmetric-log axes, and a linear view around the critical ones."""
+    alpha = np.asarray(data.alpha)
+    real = alpha.imag == 0
+    marked = np.concatenate([data.positive[:1], data.negative[:1]])
+    reach = 3.0 * np.max(np.abs(marked)) if len(marked) else (
+        float(np.percentile(np.abs(alpha), 50)) if len(alpha) else 1.0)
+    fig = Figure(figsize=(12.8, 6.0))
+    for k, ax in enumerate(fig.subplots(1, 2)):
+        ax.scatter(alpha.real[~real], alpha.imag[~real], s=12, c="0.5", label="complex")
+        ax.scatter(alpha.real[real], alpha.imag[real], s=20, c="tab:blue",
+                   label="real: critical coefficients")
+        for v, name in [(data.positive, "lowest positive"), (data.negative, "lowest negative")]:
+            if len(v):
+                ax.scatter([v[0]], [0], s=120, facecolors="none", edgecolors="tab:red", lw=2,
+                           label=f"{name}: α = {v[0]:.6g}")
+        ax.axhline(0, color="0.7", lw=0.5)
+        ax.axvline(0, color="0.7", lw=0.5)
+        ax.set_xlabel(r"Re $\alpha$")
+        ax.set_ylabel(r"Im $\alpha$")
+        ax.grid(True, alpha=0.3)
+        if k == 0:
+            ax.set_xscale("symlog", linthresh=1.0)
+            ax.set_yscale("symlog", linthresh=1.0)
+            ax.set_title(f"All {len(alpha)} finite eigenvalues found by the "
+                         f"{data.attrs.get('solver', '')} solver (symmetric log axes)",
+                         fontsize=9)
+        else:
+            outside = int(np.count_nonzero(np.abs(alpha) > reach))
+            ax.set_xlim(-reach, reach)
+            ax.set_ylim(-reach, reach)
+            ax.set_aspect("equal")
+            ax.set_title(f"Near the critical coefficients ({outside} eigenvalues outside)",
+                         fontsize=9)
+            ax.legend(fontsize=8, loc="upper right")
+    fig.suptitle(f"Spectrum of (3.2): {data.attrs.get('case_name', '')}, "
+                 f"{data.attrs['element']}, ν = {float(data.attrs['nu']):g}")
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,94 @@
+"""The command line, in-process: exit codes, JSON on stdout, the result file."""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+from helpers import CASES, four_triangles_alpha, one_triangle_alpha, run_cli, square_case
+
+
+@pytest.mark.parametrize("nu", [0.1, 0.3, 0.45])
+def test_solve_one_triangle_json(tmp_path, nu):
+    out = tmp_path / "r.h5"
+    res = run_cli("solve", CASES / "one_triangle.toml", "--nu", nu, "-o", out, "--json")
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.stdout)
+    assert summary["positive"] == pytest.approx([one_triangle_alpha(nu)], rel=1e-12)
+    assert set(summary) >= {"positive", "negative", "complex_count", "n_dofs", "n_contact",
+                            "element", "nu", "h", "seconds"}
+    assert out.exists()
+
+
+def test_solve_by_shipped_name_writes_a_self_describing_file(tmp_path):
+    out = tmp_path / "four.h5"
+    res = run_cli("solve", "four-triangles", "--nu", 0.25, "--output", out, "--json")
+    assert res.exit_code == 0, res.output
+    with h5py.File(out) as f:
+        a = f.attrs
+        assert a["kind"] == "solve" and a["nu"] == 0.25 and a["n_contact"] == 2
+        assert "nu = 0.25" in a["case_toml"] and "Fig. 3" in a["case_text"]
+        pos = f["critical/positive"][()]
+        np.testing.assert_allclose(pos, [four_triangles_alpha(0.25)], rtol=1e-10)
+        np.testing.assert_allclose(f["critical/negative"][()], -pos, rtol=1e-10)
+        assert f["eigen/alpha"].dtype == np.complex128
+        mode = f["modes/positive_0"]
+        assert mode["phi"].shape == (5, 2) and mode["theta_n"].shape == (2,)
+        assert mode.attrs["alpha"] == pytest.approx(pos[0])
+        assert f["mesh/points"].shape == (5, 2) and f["mesh/cells"].shape == (4, 3)
+        np.testing.assert_array_equal(f["mesh/contact_nodes"][()], [0, 1])
+    table = run_cli("table", out)
+    assert table.exit_code == 0 and "four_triangles" in table.stdout
+
+
+def test_overrides_reach_the_solver(tmp_path):
+    case = tmp_path / "sq.toml"
+    case.write_text(square_case(size=0.5))
+    res = run_cli("solve", case, "--element", "Q2", "--size", 0.25, "--method", "arpack",
+              "--count", 2, "-o", tmp_path / "o.h5", "--json")
+    assert res.exit_code == 0, res.output
+    s = json.loads(res.stdout)
+    assert s["element"] == "Q2" and s["method"].startswith("arpack")
+    assert len(s["positive"]) >= 2
+
+
+def test_existing_output_needs_force(tmp_path):
+    out = tmp_path / "r.h5"
+    assert run_cli("solve", "one-triangle", "-o", out).exit_code == 0
+    again = run_cli("solve", "one-triangle", "-o", out)
+    assert again.exit_code == 2 and "--force" in again.stderr
+    assert run_cli("solve", "one-triangle", "-o", out, "--force").exit_code == 0
+
+
+BAD_EDITS = {
+    "syntax": ("size = 0.5", "size = = 0.5", "TOML syntax error"),
+    "unknown key": ("[mesh]", "[mesh]\nsmoothness = 3", "mesh.smoothness"),
+    "nu = 0.5": ("nu = 0.3", "nu = 0.5", "material.nu"),
+    "negative size": ("size = 0.5", "size = -1.0", "mesh.size"),
+    "unknown element": ('element = "P1"', 'element = "P7"', "mesh.element"),
+    "no dirichlet": ("[solve]", "[boundary]\ndirichlet = []\n[solve]", "boundary.dirichlet"),
+    "not straight": ("[solve]", "[boundary]\ncontact = ['bottom', 'left']\n[solve]",
+                     "boundary.contact"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD_EDITS))
+def test_bad_case_files_exit_2_and_write_nothing(tmp_path, name):
+    old, new, key = BAD_EDITS[name]
+    text = square_case(size=0.5)
+    assert old in text
+    case = tmp_path / "bad.toml"
+    case.write_text(text.replace(old, new, 1))
+    out = tmp_path / "out.h5"
+    res = run_cli("solve", case, "-o", out)
+    assert res.exit_code == 2, res.output
+    assert key in res.stderr and "bad.toml" in res.stderr
+    assert "Traceback" not in res.output
+    assert list(tmp_path.iterdir()) == [case]
+
+
+def test_cases_lists_shipped_names():
+    res = run_cli("cases")
+    assert res.exit_code == 0 and "inclined-body" in res.stdout

@@ -1,0 +1,21 @@
+"""Shared test set-up: ``helpers`` importable from every test folder, shared fixtures."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/<stage>/ import helpers
+
+from helpers import square_case  # noqa: E402
+
+
+@pytest.fixture(scope="session")
+def coarse_square():
+    """The unit square case at size 0.2 (P1) and its prepared system, shared by the session."""
+    from critfric import loads_case, prepare
+
+    case = loads_case(square_case(size=0.2))
+    return case, prepare(case)

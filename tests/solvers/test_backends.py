@@ -1,0 +1,205 @@
+"""Linear-solver backends and the Schur-complement eigen path agree with SciPy and with an
+independent dense formulation, for every contact state (stuck, free and slipping nodes)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg as la
+import scipy.sparse as sp
+from helpers import square_case
+from typer.testing import CliRunner
+
+import critfric
+from critfric.case import schema as case_module
+from critfric.case.schema import loads_case
+from critfric.cli.app import app
+from critfric.errors import CaseError, SolverError
+from critfric.fem.assembly import lame
+from critfric.fem.contact import FREE, SLIP, STUCK
+from critfric.solve import prepare
+from critfric.solvers import backends as linsolve
+from critfric.solvers import eigen, ordering
+from critfric.solvers.eigen import ContactState
+
+AVAILABLE = linsolve.available_backends()
+
+
+def backends():
+    """Every backend; the ones missing here are skipped with the reason."""
+    return [pytest.param(b, marks=pytest.mark.skipif(
+        b not in AVAILABLE, reason=f"backend {b!r} not installed (pip install critfric[fast])"))
+        for b in linsolve.BACKENDS]
+
+
+@pytest.fixture(scope="module", params=["P1", "P2"])
+def square(request):
+    prep = prepare(loads_case(square_case(element=request.param, size=0.125)))
+    return prep.system, prep.system.stiffness(*lame(1.0, 0.3))
+
+
+def mixed_state(p: int) -> ContactState:
+    """Stuck, free and slipping nodes mixed, slip signs of both kinds."""
+    status = np.full(p, SLIP, dtype=np.int8)
+    status[[0, p // 2]] = STUCK
+    status[[1, 2, p - 1]] = FREE
+    gamma = np.where(np.arange(p) % 3 == 0, -1.0, 1.0)
+    return ContactState(status, gamma)
+
+
+def pencil_reference(K, system, state):
+    """Independent formulation: K_c Phi = alpha M Phi with M = E_t gamma R_n, dense QZ."""
+    slip = np.flatnonzero(state.status == SLIP)
+    stuck = np.flatnonzero(state.status == STUCK)
+    elim = np.concatenate([system.cn[slip], system.cn[stuck], system.ct[stuck]])
+    keep = np.setdiff1d(np.arange(K.shape[0]), elim)
+    Kd = K.toarray()
+    M = np.zeros((len(keep), len(keep)))
+    rows = np.searchsorted(keep, system.ct[slip])
+    M[rows] = state.gamma[slip, None] * Kd[np.ix_(system.cn[slip], keep)]
+    w = la.eigvals(Kd[np.ix_(keep, keep)], M)
+    return w[np.isfinite(w) & (np.abs(w) < 1e6)]
+
+
+@pytest.mark.parametrize("backend", backends())
+def test_factorize_and_schur_match_dense_algebra(backend):
+    rng = np.random.default_rng(1)
+    n = 60
+    R = sp.random(n, n, density=0.1, random_state=2)
+    A = (R @ R.T + 5 * sp.eye(n)).tocsr()
+    b = rng.standard_normal((n, 3))
+    f = linsolve.factorize(A, symmetric=True, backend=backend)
+    assert f.backend == backend
+    np.testing.assert_allclose(f.solve(b), np.linalg.solve(A.toarray(), b), rtol=1e-10)
+    np.testing.assert_allclose(f.solve(b[:, 0]), np.linalg.solve(A.toarray(), b[:, 0]),
+                               rtol=1e-10)
+    N = (A + sp.random(n, n, density=0.05, random_state=3)).tocsr()
+    g = linsolve.factorize(N, symmetric=False, backend=backend)
+    np.testing.assert_allclose(g.solve(b), np.linalg.solve(N.toarray(), b), rtol=1e-9)
+    index = np.array([50, 3, 17, 40, 8])  # unsorted on purpose
+    sc = linsolve.schur(A, index, backend=backend)
+    Ad = A.toarray()
+    inner = np.setdiff1d(np.arange(n), index)
+    S = Ad[np.ix_(index, index)] - Ad[np.ix_(index, inner)] @ np.linalg.solve(
+        Ad[np.ix_(inner, inner)], Ad[np.ix_(inner, index)])
+    np.testing.assert_allclose(sc.S, S, rtol=1e-10, atol=1e-12 * np.abs(S).max())
+    xc = rng.standard_normal((len(index), 2))
+    x = sc.extend(xc)
+    np.testing.assert_array_equal(x[index], xc)
+    np.testing.assert_allclose((Ad @ x)[index], S @ xc, rtol=1e-9)
+    assert np.abs((Ad @ x)[inner]).max() < 1e-10 * np.abs(Ad @ x).max()
+    np.testing.assert_allclose(sc.extend(xc[:, 1]), x[:, 1], rtol=1e-12)
+
+
+@pytest.mark.parametrize("backend", backends())
+def test_singular_matrix_is_a_solver_error(backend):
+    for A in (np.diag([1.0, 2.0, 0.0, 3.0]), [[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0, 0, 1.0]]):
+        with pytest.raises(SolverError, match="singular"):
+            linsolve.factorize(sp.csr_matrix(A), backend=backend).solve(np.ones(len(A)))
+
+
+@pytest.mark.parametrize("backend", backends())
+def test_every_path_of_every_backend_agrees_on_a_mixed_contact_state(square, backend):
+    system, K = square
+    state = mixed_state(system.n_contact)
+    ref = pencil_reference(K, system, state)
+    dense = eigen.solve(K, system, state, method="dense", count=2, backend=backend)
+    arpack = eigen.solve(K, system, state, method="arpack", count=1, backend=backend)
+    scipy = eigen.solve(K, system, state, method="dense", count=2, backend="scipy")
+    assert dense.backend == arpack.backend == backend
+    assert len(dense.alpha) == len(ref)
+    for a in dense.alpha:  # the Schur path gives the whole spectrum of the pencil
+        assert np.min(np.abs(ref - a)) <= 1e-8 * abs(a)
+    np.testing.assert_allclose(dense.positive, scipy.positive, rtol=1e-9)
+    np.testing.assert_allclose(dense.negative, scipy.negative, rtol=1e-9)
+    np.testing.assert_allclose(arpack.positive[0], scipy.positive[0], rtol=1e-9)
+    for mode in dense.modes:  # the mode obeys the contact state
+        assert np.all(mode.phi[system.cn[state.status != FREE]] == 0.0)
+        assert np.all(mode.phi[system.ct[state.status == STUCK]] == 0.0)
+        assert np.abs(mode.X[state.status == FREE]).max() <= 1e-10 * np.abs(mode.X).max()
+        assert mode.residual <= 1e-9
+
+
+@pytest.mark.parametrize("backend", backends())
+def test_shifted_pencil_with_each_backend(square, backend):
+    system, K = square
+    ref = eigen.solve(K, system, method="dense", count=1, backend="scipy").positive[0]
+    near = eigen.solve(K, system, method="arpack", count=1, shift=ref + 0.2, backend=backend)
+    assert near.method == "arpack-shift"
+    np.testing.assert_allclose(near.positive[0], ref, rtol=1e-9)
+
+
+@pytest.mark.parametrize("backend", backends())
+def test_schur_path_finds_the_real_eigenvalue_behind_the_complex_cluster(backend):
+    nu = 0.02  # the lowest real alpha lies beyond nearly imaginary ones: ARPACK at k = 2 misses it
+    text = square_case(size=0.04, nu=nu, extra=f'backend = "{backend}"')
+    d = critfric.solve_case(loads_case(text), overrides={"solve.method": "dense"})
+    a = critfric.solve_case(loads_case(text), overrides={"solve.method": "arpack"})
+    assert d.solver == "dense" and d.backend == backend
+    assert d.positive[0] > 2 * (1 - nu) / (1 - 2 * nu)
+    np.testing.assert_allclose(d.positive[0], a.positive[0], rtol=1e-9)
+
+
+def test_auto_backend_is_named_in_the_result_and_the_file(tmp_path):
+    r = critfric.solve_case(loads_case(square_case(size=0.25)))
+    assert r.backend == AVAILABLE[0] and r.backend in linsolve.BACKENDS
+    assert r.summary()["backend"] == r.backend
+    path = critfric.write_result(r, tmp_path / "r.h5")
+    assert critfric.read_summary(path)["backend"] == r.backend
+
+
+def test_auto_picks_the_schur_path_when_the_backend_gives_it(monkeypatch):
+    monkeypatch.setattr(eigen, "AUTO_DENSE_DOFS", 10)
+    r = critfric.solve_case(loads_case(square_case(size=0.1)))
+    assert r.solver == ("dense" if r.backend in eigen.FAST_SCHUR else "arpack")
+
+
+def test_backend_names_agree_between_schema_and_solvers():
+    assert case_module.BACKENDS == ("auto",) + linsolve.BACKENDS
+
+
+def test_unknown_backend_is_a_case_error_naming_the_key():
+    with pytest.raises(CaseError, match=r"solve\.backend.*'mkl'|solve\.backend") as err:
+        loads_case(square_case(extra='backend = "mkl"'))
+    assert "scipy" in str(err.value)
+    result = CliRunner().invoke(app, ["solve", "unit-square", "--backend", "nope"])
+    assert result.exit_code == 2 and "solve.backend" in result.output
+
+
+def test_missing_backend_is_a_solver_error(monkeypatch):
+    monkeypatch.setattr(linsolve, "_pardiso_library", lambda: None)
+    assert linsolve.available_backends() == ("scipy",)
+    assert linsolve.resolve_backend("auto") == "scipy"
+    with pytest.raises(SolverError, match="not available.*critfric\\[fast\\]"):
+        linsolve.resolve_backend("pardiso")
+
+
+def test_nested_dissection_is_a_fill_reducing_permutation():
+    prep = prepare(loads_case(square_case(size=0.01)))
+    s, mesh = prep.system, prep.mesh
+    rank = ordering.nested_dissection(mesh.points, mesh.cells)
+    np.testing.assert_array_equal(np.sort(rank), np.arange(mesh.n_nodes))
+    K = s.stiffness(*lame(1.0, 0.3))
+    nd = linsolve.ScipyFactor(K, symmetric=True, order=ordering.dof_order(s.free // 2, rank))
+    mmd = linsolve.ScipyFactor(K, symmetric=True)
+    fill = [f._lu.L.nnz + f._lu.U.nnz for f in (nd, mmd)]
+    assert fill[0] <= 1.2 * fill[1]  # minimum degree's fill or better (2x less at 1 M DOFs)
+    b = np.random.default_rng(1).standard_normal(K.shape[0])
+    x = mmd.solve(b)
+    np.testing.assert_allclose(nd.solve(b), x, rtol=1e-9, atol=1e-12 * np.abs(x).max())
+
+
+@pytest.mark.parametrize("element", ["P1", "Q1"])
+def test_scipy_paths_with_nested_dissection_agree(element, monkeypatch):
+    system = prepare(loads_case(square_case(element=element, size=0.125))).system
+    K = system.stiffness(*lame(1.0, 0.3))
+    state = mixed_state(system.n_contact)
+    ref = [eigen.solve(K, system, state, method=m, count=1, backend="scipy")
+           for m in ("dense", "arpack")]
+    monkeypatch.setattr(eigen, "ND_MIN_DOFS", 0)
+    assert eigen._fill_order(system, np.arange(K.shape[0]), "scipy") is not None
+    got = [eigen.solve(K, system, state, method=m, count=1, backend="scipy")
+           for m in ("dense", "arpack")]
+    for a, b in zip(got, ref):
+        np.testing.assert_allclose(a.positive[:1], b.positive[:1], rtol=1e-10)
+        np.testing.assert_allclose(a.modes[0].phi, b.modes[0].phi, atol=1e-9)
