@@ -25,10 +25,12 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CaseError
+from .fem.elements import get_element
+from .fem.mesh import shoelace
 
 BYTES_PER_DOF_LOG = 250.0
 BASE_BYTES = 150e6
-_CELL_AREA = {"P1": math.sqrt(3) / 2, "P2": math.sqrt(3) / 2, "Q1": 1.0, "Q2": 1.0}
+_CELL_AREA = {"triangle": math.sqrt(3) / 2, "quad": 1.0}  # cell area / size^2
 
 
 @dataclass(frozen=True)
@@ -39,19 +41,26 @@ class Footprint:
     perimeter: float
     n_vertices: int
 
-    def dofs(self, h: float, element: str) -> float:
-        """Estimated DOF count at mesh size ``h`` (a float: may be huge or inf)."""
-        k = 4.0 if element in ("P2", "Q2") else 1.0
+    def nodes(self, h: float, element: str) -> float:
+        """Estimated node count at mesh size ``h`` (a float: may be huge or inf): vertices
+        area / (c h^2) + perimeter / (2 h) + corners (c = sqrt(3)/2 for triangles, 1 for
+        quads), times order^2 for the edge and interior nodes of second-order elements."""
+        spec = get_element(element)
         with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
             x = np.float64(1.0) / np.float64(h)
-            nodes = k * (self.area / _CELL_AREA[element] * x * x + self.perimeter / 2 * x
-                         + self.n_vertices)
-        return float(2.0 * nodes) if np.isfinite(nodes) else math.inf
+            nodes = spec.order**2 * (self.area / _CELL_AREA[spec.reference] * x * x
+                                     + self.perimeter / 2 * x + self.n_vertices)
+        return float(nodes) if np.isfinite(nodes) else math.inf
+
+    def dofs(self, h: float, element: str) -> float:
+        """Estimated DOF count at mesh size ``h``: two per node."""
+        return 2.0 * self.nodes(h, element)
 
     def finest_size(self, max_dofs: float, element: str) -> float:
         """The smallest h with ``dofs(h) <= max_dofs`` (inf if even one cell is too many)."""
-        k = 4.0 if element in ("P2", "Q2") else 1.0
-        a, b = self.area / _CELL_AREA[element], self.perimeter / 2
+        spec = get_element(element)
+        k = spec.order**2
+        a, b = self.area / _CELL_AREA[spec.reference], self.perimeter / 2
         c = self.n_vertices - max_dofs / (2 * k)
         if c >= 0:
             return math.inf
@@ -142,11 +151,9 @@ def check_dofs(n_dofs: float, *, element: str, what: str, source: str | None,
 def polygon_footprint(vertices: np.ndarray) -> Footprint:
     """Footprint of a closed polygon (n, 2), either orientation."""
     v = np.asarray(vertices, dtype=np.float64)
-    w = np.roll(v, -1, axis=0)
     with np.errstate(over="ignore", invalid="ignore"):
-        area = 0.5 * abs(float(np.sum(v[:, 0] * w[:, 1] - w[:, 0] * v[:, 1])))
-        perimeter = float(np.linalg.norm(w - v, axis=1).sum())
-    return Footprint(area, perimeter, len(v))
+        perimeter = float(np.linalg.norm(np.roll(v, -1, axis=0) - v, axis=1).sum())
+    return Footprint(abs(float(shoelace(v))), perimeter, len(v))
 
 
 # ------------------------------------------------------------------------------ interrupts

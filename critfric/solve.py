@@ -18,12 +18,13 @@ from .case.schema import Case, load_case
 from .errors import CaseError
 from .fem.assembly import assemble_elasticity, lame
 from .fem.contact import ContactSystem, check_held, contact_system
+from .fem.mesh import Mesh
 from .guards import check_dofs, polygon_footprint
 from .meshing.geometry import parallelogram, polygon, rectangle, validate
 from .meshing.gmshfile import check_file, file_mesh
-from .meshing.mesh import Mesh, build_mesh, inline_mesh
+from .meshing.mesh import build_mesh, inline_mesh
 from .solvers import eigen
-from .solvers.state import contact_state
+from .solvers.from_case import contact_state
 
 
 @dataclass
@@ -168,14 +169,6 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False)
     return Prepared(mesh, system, {"mesh": t1 - t0, "assembly": t2 - t1, "contact": t3 - t2})
 
 
-def mesh_diameter(mesh: Mesh) -> float:
-    """h: the largest cell diameter (longest distance between two vertices of a cell)."""
-    nv = 3 if mesh.element in ("P1", "P2") else 4
-    v = mesh.points[mesh.cells[:, :nv]]
-    d = np.linalg.norm(v[:, :, None, :] - v[:, None, :, :], axis=-1)
-    return float(d.max())
-
-
 def solve_prepared(prep: Prepared, case: Case) -> Result:
     """Solve the eigenproblem of a prepared case at the case's Poisson ratio."""
     t0 = time.perf_counter()
@@ -204,7 +197,7 @@ def solve_prepared(prep: Prepared, case: Case) -> Result:
         case=case, positive=spec.positive, negative=spec.negative, alpha=spec.alpha,
         modes=modes, mesh=prep.mesh, contact_nodes=system.nodes, normal=system.normal,
         n_dofs=system.n_dofs, nu=nu, E=E, element=case.mesh["element"],
-        size=case.mesh["size"], h=mesh_diameter(prep.mesh), solver=spec.method,
+        size=case.mesh["size"], h=prep.mesh.diameter, solver=spec.method,
         applications=spec.applications, n_infinite=spec.n_infinite,
         seconds=sum(timings.values()), timings=timings, warnings=spec.warnings,
         notes=spec.notes, backend=spec.backend,

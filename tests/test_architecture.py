@@ -10,7 +10,7 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "critfric"
 # lowest first: a module may import only from its own layer or a lower one
-LAYERS = ["_version", "errors", "guards", "case", "meshing", "fem", "solvers", "solve",
+LAYERS = ["_version", "errors", "fem", "guards", "case", "meshing", "solvers", "solve",
           "multiplicity", "stability", "files", "sweep", "plots", "cli", "__main__"]
 MAX_LINES = 450
 MAX_TOP_MODULES = 6

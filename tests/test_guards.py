@@ -26,7 +26,7 @@ from critfric.guards import (
     memory_estimate,
     polygon_footprint,
 )
-from critfric.meshing.geometry import polygon
+from critfric.meshing.geometry import polygon, rectangle
 from critfric.meshing.mesh import build_mesh
 
 L_SHAPE = [[0, 0], [2, 0], [2, 1], [1, 1], [1, 2], [0, 2]]
@@ -210,3 +210,13 @@ element = "{element}"
         with pytest.raises(CaseError, match=r"two\.toml.*boundary\.dirichlet.*1 of the 2 "
                                             r"connected pieces"):
             solve_case(case)
+
+
+def test_node_estimate_orders():
+    sq = rectangle(1, 1)
+    p1 = polygon_footprint(sq.vertices).nodes(0.01, "P1")
+    assert 10_000 < p1 < 13_000  # ~ 1 / (0.866 h^2)
+    assert polygon_footprint(sq.vertices).nodes(0.01, "Q1") < p1
+    assert polygon_footprint(sq.vertices).nodes(0.01, "P2") == pytest.approx(4 * p1, rel=1e-3)
+    with pytest.raises(CaseError, match="unknown element"):
+        polygon_footprint(sq.vertices).nodes(0.1, "P3")

@@ -2,7 +2,6 @@
 
 from .schema import (
                      BACKENDS,
-                     ELEMENTS,
                      METHODS,
                      OVERRIDES,
                      SHAPES,
@@ -13,5 +12,5 @@ from .schema import (
                      shipped_cases,
 )
 
-__all__ = ["BACKENDS", "ELEMENTS", "METHODS", "OVERRIDES", "SHAPES", "Case", "from_dict",
+__all__ = ["BACKENDS", "METHODS", "OVERRIDES", "SHAPES", "Case", "from_dict",
            "load_case", "loads_case", "shipped_cases"]

@@ -17,8 +17,8 @@ import tomli_w
 
 from ..case import checks as c
 from ..errors import CaseError
+from ..fem.elements import ELEMENTS, NAMES
 
-ELEMENTS = ("P1", "P2", "Q1", "Q2")
 SHAPES = ("square", "rectangle", "parallelogram", "polygon", "mesh", "file")
 METHODS = ("auto", "arpack", "dense")
 BACKENDS = ("auto", "scipy", "pardiso")  # linear solvers: critfric.linsolve.BACKENDS
@@ -53,7 +53,7 @@ SCHEMA: dict[str, dict[str, c.Key]] = {
         "nu": c.Key(c.number(0.0, 0.5, hi_open=True), 0.3, "Poisson ratio in [0, 0.5)"),
     },
     "mesh": {
-        "element": c.Key(c.choice(*ELEMENTS), "P1", "finite element: " + ", ".join(ELEMENTS)),
+        "element": c.Key(c.choice(*NAMES), "P1", "finite element: " + ", ".join(NAMES)),
         "size": c.Key(POSITIVE, c.REQUIRED, "target element size h (gmsh shapes)"),
         "structured": c.Key(c.boolean, False, "transfinite mesh (4-vertex shapes only)"),
         "grading": c.Key(c.number(0.0, 1.0, lo_open=True), None,
@@ -272,7 +272,8 @@ def _check_consistency(s: dict, source: str) -> None:
         if (geo["triangles"] is None) == (geo["quads"] is None):
             raise CaseError("give exactly one of 'triangles' or 'quads'", file=source,
                             key="geometry.triangles")
-        family = ("P1", "P2") if geo["triangles"] is not None else ("Q1", "Q2")
+        cell = "triangle" if geo["triangles"] is not None else "quad"
+        family = [e.name for e in ELEMENTS.values() if e.reference == cell]
         if mesh["element"] not in family:
             raise CaseError(f"got {mesh['element']!r} for this inline mesh; allowed: "
                             + " or ".join(family), file=source, key="mesh.element")

@@ -14,8 +14,9 @@ from typing import Annotated, Optional
 import typer
 
 from .._version import __version__
-from ..case.schema import BACKENDS, ELEMENTS, METHODS, OVERRIDES, load_case, shipped_cases
+from ..case.schema import BACKENDS, METHODS, OVERRIDES, load_case, shipped_cases
 from ..errors import CritfricError
+from ..fem.elements import NAMES
 from ..files.results import default_output, read_summary, write_result
 from ..files.safety import check_output, interrupt_guard, output_lock
 from ..solve import solve_case
@@ -67,7 +68,7 @@ def solve(
     case: str = typer.Argument(..., help="Case file (TOML) or shipped case name "
                                          "(see `critfric cases`)."),
     nu: Optional[float] = typer.Option(None, help="Poisson ratio, overrides [material] nu."),
-    element: Optional[str] = typer.Option(None, help="Element: " + ", ".join(ELEMENTS) + "."),
+    element: Optional[str] = typer.Option(None, help="Element: " + ", ".join(NAMES) + "."),
     size: Optional[float] = typer.Option(None, help="Target mesh size h."),
     count: Optional[int] = typer.Option(None, help="Lowest positive coefficients wanted."),
     shift: Optional[float] = typer.Option(None, help="Find eigenvalues nearest this value."),
@@ -275,7 +276,7 @@ def solutions(
 def verify(
     case: str = typer.Argument(..., help="Case file or shipped case name."),
     nu: Optional[float] = typer.Option(None, help="Poisson ratio, overrides [material] nu."),
-    element: Optional[str] = typer.Option(None, help="Element: " + ", ".join(ELEMENTS) + "."),
+    element: Optional[str] = typer.Option(None, help="Element: " + ", ".join(NAMES) + "."),
     size: Optional[float] = typer.Option(None, help="Target mesh size h."),
     off: float = typer.Option(0.01, help="Counter-check at friction * (1 -/+ off)."),
     as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),

@@ -3,9 +3,10 @@ discrete static problem."""
 
 from .assembly import assemble_elasticity, lame
 from .contact import ContactSystem, contact_system
-from .elements import get_element
+from .elements import ELEMENTS, get_element
 from .loads import body_force_load, traction_load
-from .static import StaticProblem, build, case_problem
+from .mesh import Mesh
+from .static import StaticProblem, build
 
-__all__ = ["ContactSystem", "StaticProblem", "assemble_elasticity", "body_force_load", "build",
-           "case_problem", "contact_system", "get_element", "lame", "traction_load"]
+__all__ = ["ELEMENTS", "ContactSystem", "Mesh", "StaticProblem", "assemble_elasticity", "body_force_load", "build",
+           "contact_system", "get_element", "lame", "traction_load"]

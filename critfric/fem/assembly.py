@@ -11,8 +11,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import CaseError
-from ..meshing.mesh import Mesh
 from .elements import get_element
+from .mesh import Mesh
 
 
 def lame(E: float, nu: float) -> tuple[float, float]:

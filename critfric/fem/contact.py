@@ -14,7 +14,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import CaseError
-from ..meshing.mesh import Mesh
+from .elements import get_element
+from .mesh import Mesh
 
 FREE, STUCK, SLIP = 0, 1, 2  # contact status of a node (I_f, I_s, I_c)
 STRAIGHT_TOL = 1e-9  # relative distance to the line allowed on a straight Gamma_C
@@ -101,7 +102,7 @@ def contact_geometry(mesh: Mesh, contact: list[str], dirichlet_nodes: np.ndarray
             f"{np.max(np.abs(offset)):.3g} off the line); allowed: collinear edges only",
             file=source, key="boundary.contact")
     # Orient n outwards: cells with an edge on Gamma_C lie on the inner side.
-    touching = np.isin(mesh.cells[:, :_n_vertices(mesh)], on_line).sum(axis=1) >= 2
+    touching = np.isin(mesh.cells[:, :get_element(mesh.element).n_vertices], on_line).sum(axis=1) >= 2
     side = (mesh.points[mesh.cells[touching]].mean(axis=1) - start) @ normal
     if touching.sum() == 0 or not (np.all(side > 0) or np.all(side < 0)):
         raise CaseError(f"edges {contact} are not on the boundary of the body (cells on both "
@@ -116,10 +117,6 @@ def contact_geometry(mesh: Mesh, contact: list[str], dirichlet_nodes: np.ndarray
                         file=source, key="boundary.contact")
     nodes = nodes[np.argsort(mesh.points[nodes] @ tangent, kind="stable")]
     return nodes, normal, tangent
-
-
-def _n_vertices(mesh: Mesh) -> int:
-    return 3 if mesh.element in ("P1", "P2") else 4
 
 
 def rotation(n_nodes: int, nodes: np.ndarray, normal, tangent) -> sp.csr_matrix:

@@ -1,6 +1,9 @@
-"""Reference finite elements (P1, P2, Q1, Q2) with node order as in gmsh.
+"""Reference finite elements (P1, P2, Q1, Q2) with node order as in gmsh: every fact about an
+element lives here, in its class (adding an element is adding a class to ``ELEMENTS``).
 
-Each element gives its reference nodes ``doflocs``, shape functions and gradients on the
+Each element gives its reference nodes ``doflocs`` (vertices first, counterclockwise, then edge
+midpoints, then interior nodes), its local edges, the permutation that reverses a cell's
+orientation, its gmsh cell and facet types, shape functions and gradients on the
 reference cell, and a quadrature rule that integrates the stiffness integrand exactly on
 straight-sided triangles (P1, P2) and parallelograms (Q1, Q2). Reference cells: the triangle
 (0,0), (1,0), (0,1) and the square [-1, 1]^2. Facets (edges) use the interval [-1, 1] with
@@ -50,13 +53,33 @@ def facet_shape(s: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 class Element:
-    """Base class: subclasses set the attributes and implement :meth:`shape`."""
+    """Base class: subclasses set the attributes and implement :meth:`shape`.
+
+    name, order  : "P1" ..., polynomial degree (1 or 2).
+    n_local      : nodes of one cell; n_vertices of them are the corners, counterclockwise.
+    reference    : "triangle" (0,0), (1,0), (0,1) or "quad" [-1, 1]^2.
+    doflocs      : (n_local, 2) reference coordinates of the nodes.
+    edges        : (n_vertices, 2 or 3) local nodes of each edge: end, end[, midpoint].
+    flip         : local permutation reversing a cell's orientation (vertex 0 kept, midpoints
+                   follow their edge).
+    gmsh_cell    : gmsh element type of a cell; gmsh_facet: of a boundary facet.
+    """
 
     name: str
     n_local: int
+    n_vertices: int
     order: int
     reference: str
     doflocs: np.ndarray
+    edges: np.ndarray
+    flip: list[int]
+    gmsh_cell: int
+    gmsh_facet: int
+
+    @property
+    def facet_nodes(self) -> int:
+        """Nodes on one boundary facet: order + 1."""
+        return self.order + 1
 
     def shape(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Values (n_local, n_qp) and reference gradients (n_local, n_qp, 2) at ``xi`` (n_qp, 2)."""
@@ -71,7 +94,10 @@ class Element:
 
 
 class P1(Element):
-    name, n_local, order, reference = "P1", 3, 1, "triangle"
+    name, n_local, n_vertices, order, reference = "P1", 3, 3, 1, "triangle"
+    edges = np.array([[0, 1], [1, 2], [2, 0]])
+    flip = [0, 2, 1]
+    gmsh_cell, gmsh_facet = 2, 1  # triangle, line
     doflocs = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
 
     def shape(self, xi):
@@ -87,7 +113,10 @@ class P1(Element):
 
 
 class P2(Element):
-    name, n_local, order, reference = "P2", 6, 2, "triangle"
+    name, n_local, n_vertices, order, reference = "P2", 6, 3, 2, "triangle"
+    edges = np.array([[0, 1, 3], [1, 2, 4], [2, 0, 5]])
+    flip = [0, 2, 1, 5, 4, 3]
+    gmsh_cell, gmsh_facet = 9, 8  # triangle6, line3
     doflocs = np.array(
         [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.5, 0.0], [0.5, 0.5], [0.0, 0.5]]
     )
@@ -114,7 +143,7 @@ class P2(Element):
 class _TensorQuad(Element):
     """Lagrange tensor-product element on [-1, 1]^2 with nodes at ``doflocs``."""
 
-    reference = "quad"
+    reference, n_vertices = "quad", 4
 
     def shape(self, xi):
         xi = np.asarray(xi, dtype=float)
@@ -135,11 +164,17 @@ class _TensorQuad(Element):
 
 class Q1(_TensorQuad):
     name, n_local, order = "Q1", 4, 1
+    edges = np.array([[0, 1], [1, 2], [2, 3], [3, 0]])
+    flip = [0, 3, 2, 1]
+    gmsh_cell, gmsh_facet = 3, 1  # quadrangle, line
     doflocs = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
 
 
 class Q2(_TensorQuad):
     name, n_local, order = "Q2", 9, 2
+    edges = np.array([[0, 1, 4], [1, 2, 5], [2, 3, 6], [3, 0, 7]])
+    flip = [0, 3, 2, 1, 7, 6, 5, 4, 8]
+    gmsh_cell, gmsh_facet = 10, 8  # quadrangle9, line3
     doflocs = np.array(
         [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0],
          [0.0, -1.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, 0.0]]
@@ -147,6 +182,7 @@ class Q2(_TensorQuad):
 
 
 ELEMENTS: dict[str, Element] = {"P1": P1(), "P2": P2(), "Q1": Q1(), "Q2": Q2()}
+NAMES = tuple(ELEMENTS)  # what a case's [mesh] element may be
 
 
 def get_element(name: str) -> Element:
@@ -155,4 +191,5 @@ def get_element(name: str) -> Element:
         return ELEMENTS[name]
     except (KeyError, TypeError):
         allowed = ", ".join(ELEMENTS)
-        raise CaseError(f"unknown element {name!r}; allowed: {allowed}") from None
+        raise CaseError(f"unknown element {name!r}; allowed: {allowed}",
+                        key="mesh.element") from None

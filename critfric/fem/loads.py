@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import CaseError
-from ..meshing.mesh import Mesh
 from .assembly import cell_geometry
 from .elements import facet_quadrature, facet_shape, get_element
+from .mesh import Mesh
 
 
 def traction_load(mesh: Mesh, edge_name: str, traction) -> np.ndarray:
@@ -45,17 +45,11 @@ def _scatter(n_nodes: int, nodes: np.ndarray, weights: np.ndarray, vector) -> np
     return (nodal[:, None] * vector).ravel()
 
 
-_LOCAL_EDGES = {"P1": ([0, 1, 2], [1, 2, 0], None), "P2": ([0, 1, 2], [1, 2, 0], [3, 4, 5]),
-                "Q1": ([0, 1, 2, 3], [1, 2, 3, 0], None),
-                "Q2": ([0, 1, 2, 3], [1, 2, 3, 0], [4, 5, 6, 7])}
-
 
 def boundary_facets(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
     """Every boundary facet (k, 2) or (k, 3) (end, end[, mid]) and its outward unit normal."""
-    a, b, mid = _LOCAL_EDGES[mesh.element]
-    cells = np.asarray(mesh.cells)
-    facets = np.stack([cells[:, a], cells[:, b]] + ([cells[:, mid]] if mid else []), axis=-1)
-    facets = facets.reshape(-1, facets.shape[-1])
+    local = get_element(mesh.element).edges  # (n_vertices, end end[ mid])
+    facets = np.asarray(mesh.cells)[:, local].reshape(-1, local.shape[1])
     keys = np.sort(facets[:, :2], axis=1)
     _, inverse, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
     facets = facets[count[inverse.ravel()] == 1]

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..errors import CaseError
 from ..fem.assembly import cell_stress, lame, von_mises
-from ..meshing.mesh import Mesh
+from ..fem.mesh import Mesh
 from .results import file_attrs
 
 FORMATS = ("xdmf", "vtu")

@@ -2,7 +2,7 @@
 
 from .geometry import Polygon, parallelogram, polygon, rectangle, validate
 from .gmshfile import check_file, file_mesh
-from .mesh import Mesh, build_mesh, inline_mesh
+from .mesh import build_mesh, inline_mesh
 
-__all__ = ["Mesh", "Polygon", "build_mesh", "check_file", "file_mesh", "inline_mesh",
+__all__ = ["Polygon", "build_mesh", "check_file", "file_mesh", "inline_mesh",
            "parallelogram", "polygon", "rectangle", "validate"]

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import CaseError
+from ..fem.mesh import shoelace
 
 #: relative tolerance (times the bounding-box diagonal) for coincidence and collinearity tests
 REL_TOL = 1e-10
@@ -52,8 +53,7 @@ class Polygon:
 
 def signed_area(vertices: np.ndarray) -> float:
     """Shoelace area, positive for counterclockwise vertices."""
-    x, y = np.asarray(vertices, dtype=np.float64).T
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    return float(shoelace(vertices))
 
 
 def positive_number(value, key: str) -> float:
@@ -227,19 +227,3 @@ def collinear_run(points, tol: float = 1e-9, *, key: str | None = None):
         if np.any(t[1:, 0] > reach[:-1] + tol * length):
             raise CaseError("the edges do not form one connected straight segment", key=key)
     return a.copy(), b.copy(), u
-
-
-def mesh_size_estimate(poly: Polygon, size: float, element: str) -> int:
-    """Rough node count of a mesh of ``poly`` with element size ``size`` (for resource guards).
-
-    Vertex count: area / (c * size^2) + perimeter / (2 * size), with c = sqrt(3)/2 for
-    triangles and 1 for quads; second-order elements have about 4 times as many nodes.
-    """
-    h = positive_number(size, "mesh.size")
-    c = {"P1": math.sqrt(3) / 2, "P2": math.sqrt(3) / 2, "Q1": 1.0, "Q2": 1.0}.get(element)
-    if c is None:
-        raise CaseError(f"unknown element {element!r}; allowed: P1, P2, Q1, Q2", key="mesh.element")
-    seg = poly.segments
-    perimeter = float(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1).sum())
-    vertices = abs(poly.area) / (c * h * h) + perimeter / (2 * h) + poly.n_vertices
-    return int(math.ceil(vertices * (4 if element in ("P2", "Q2") else 1)))

@@ -27,8 +27,9 @@ from typing import Callable
 import numpy as np
 
 from ..errors import CaseError, SolverError
+from ..fem.mesh import Mesh
 from ..guards import Footprint
-from .mesh import Mesh, _gmsh_session, inline_mesh
+from .mesh import _gmsh_session, inline_mesh
 
 _RUNS = "runs a shell command"
 _READS = "reads another file (a .py file would be run)"

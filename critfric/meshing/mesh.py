@@ -1,87 +1,21 @@
-"""Meshes: points, cells and named boundary edges."""
+"""Meshes built by gmsh from a polygon, and meshes given inline in a case file."""
 
 from __future__ import annotations
 
 import math
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import CaseError, CritfricError, SolverError
-from .geometry import Polygon, collinear_run, mesh_size_estimate, positive_number, validate
+from ..fem.elements import get_element
+from ..fem.mesh import Mesh, orient
+from ..guards import polygon_footprint
+from .geometry import Polygon, collinear_run, positive_number, validate
 
-
-@dataclass(frozen=True)
-class Mesh:
-    """A 2D finite-element mesh.
-
-    points : (n_nodes, 2) float64 node coordinates.
-    cells  : (n_cells, n_local) int64 node indices, local order as in gmsh
-             (P1: 3 vertices counterclockwise; P2: 3 vertices then edge midpoints 01, 12, 20;
-              Q1: 4 vertices counterclockwise; Q2: 4 vertices, midpoints 01, 12, 23, 30, centre).
-    element: "P1" | "P2" | "Q1" | "Q2".
-    edges  : boundary group name -> (n_facets, 2) int64 (order 1) or (n_facets, 3) (order 2:
-             end, end, midpoint) node indices of the boundary facets in that group.
-    """
-
-    points: np.ndarray
-    cells: np.ndarray
-    element: str
-    edges: dict[str, np.ndarray] = field(default_factory=dict)
-
-    @property
-    def n_nodes(self) -> int:
-        return len(self.points)
-
-    @property
-    def n_cells(self) -> int:
-        return len(self.cells)
-
-    def edge_nodes(self, names) -> np.ndarray:
-        """Sorted unique node indices on the boundary groups ``names``."""
-        parts = [self.edges[name].ravel() for name in names]
-        return np.unique(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.int64)
-
-
-# ---------------------------------------------------------------------------------------------
-# element tables (gmsh local node order)
-
-ELEMENTS = ("P1", "P2", "Q1", "Q2")
-_N_VERTICES = {"P1": 3, "P2": 3, "Q1": 4, "Q2": 4}
-_ORDER = {"P1": 1, "P2": 2, "Q1": 1, "Q2": 2}
-_GMSH_CELL = {"P1": 2, "P2": 9, "Q1": 3, "Q2": 10}  # triangle, triangle6, quadrangle, quadrangle9
-_GMSH_LINE = {1: 1, 2: 8}  # line, line3
-_N_LOCAL = {"P1": 3, "P2": 6, "Q1": 4, "Q2": 9}
-# local permutation reversing a cell's orientation (keeps vertex 0, midpoints follow their edge)
-_FLIP = {"P1": [0, 2, 1], "P2": [0, 2, 1, 5, 4, 3],
-         "Q1": [0, 3, 2, 1], "Q2": [0, 3, 2, 1, 7, 6, 5, 4, 8]}
 #: unstructured meshes above this many estimated vertices are meshed coarser, then split
 #: uniformly (gmsh refine) until they reach ``size``: same quality, ~10x faster for 1e6 DOFs
 REFINE_ABOVE = 60_000
-
-
-def _check_element(element) -> str:
-    if element not in ELEMENTS:
-        raise CaseError(f"unknown element {element!r}; allowed: {', '.join(ELEMENTS)}",
-                        key="mesh.element")
-    return element
-
-
-def signed_areas(points: np.ndarray, cells: np.ndarray, element: str) -> np.ndarray:
-    """Shoelace area of each cell's vertex polygon (positive when counterclockwise)."""
-    v = points[cells[:, : _N_VERTICES[element]]]  # (n_cells, nv, 2)
-    w = np.roll(v, -1, axis=1)
-    return 0.5 * np.sum(v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0], axis=1)
-
-
-def _orient(points, cells, element):
-    """Cells reordered counterclockwise, and their (signed-before-flip) areas."""
-    area = signed_areas(points, cells, element)
-    cells = cells.copy()
-    cw = area < 0
-    cells[cw] = cells[cw][:, _FLIP[element]]
-    return cells, area
 
 
 # ---------------------------------------------------------------------------------------------
@@ -128,7 +62,7 @@ def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = F
     """
     import gmsh
 
-    _check_element(element)
+    get_element(element)
     validate(poly)
     h = positive_number(size, "mesh.size")
     if structured and poly.n_vertices != 4:
@@ -160,7 +94,7 @@ def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = F
             if structured:
                 _set_transfinite(poly, h, element)
             else:
-                quads = element in ("Q1", "Q2")
+                quads = get_element(element).reference == "quad"
                 gmsh.option.setNumber("Mesh.Algorithm", 8 if quads else 6)
                 gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
                 gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
@@ -174,7 +108,7 @@ def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = F
             gmsh.model.mesh.generate(2)
             for _ in range(n_refine):
                 gmsh.model.mesh.refine()
-            if _ORDER[element] == 2:
+            if get_element(element).order == 2:
                 gmsh.option.setNumber("Mesh.SecondOrderLinear", 1)
                 gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 0)
                 gmsh.model.mesh.setOrder(2)
@@ -188,7 +122,7 @@ def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = F
 
 def _refinements(poly: Polygon, h: float, element: str) -> int:
     """Number of uniform refinements: base mesh small, but not coarser than the shortest edge."""
-    est = mesh_size_estimate(poly, h, "Q1" if element[0] == "Q" else "P1")
+    est = polygon_footprint(poly.vertices).nodes(h, "Q1" if element[0] == "Q" else "P1")
     seg = poly.segments
     shortest = float(np.min(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1)))
     by_count = math.ceil(math.log(est / REFINE_ABOVE, 4)) if est > REFINE_ABOVE else 0
@@ -245,13 +179,14 @@ def _extract(element: str) -> Mesh:
     """Current gmsh mesh as a Mesh: compact numbering, unused nodes dropped, cells ccw."""
     import gmsh
 
-    cell_type = _GMSH_CELL[element]
+    spec = get_element(element)
+    cell_type = spec.gmsh_cell
     types = set(int(t) for t in gmsh.model.mesh.getElementTypes(2))
     if types != {cell_type}:
         raise SolverError(f"gmsh produced surface element types {sorted(types)}, expected only "
                           f"{cell_type} for {element}; try a different mesh size or P1/P2")
     _, cell_tags = gmsh.model.mesh.getElementsByType(cell_type)
-    cell_tags = np.asarray(cell_tags, dtype=np.int64).reshape(-1, _N_LOCAL[element])
+    cell_tags = np.asarray(cell_tags, dtype=np.int64).reshape(-1, spec.n_local)
     node_tags, coords, _ = gmsh.model.mesh.getNodes()
     node_tags = np.asarray(node_tags, dtype=np.int64)
     position = np.empty(node_tags.max() + 1, dtype=np.int64)
@@ -260,17 +195,17 @@ def _extract(element: str) -> Mesh:
     points = np.asarray(coords, dtype=np.float64).reshape(-1, 3)[position[used], :2]
     lookup = np.full(node_tags.max() + 1, -1, dtype=np.int64)
     lookup[used] = np.arange(len(used))
-    cells, area = _orient(points, lookup[cell_tags], element)
+    cells, area = orient(points, lookup[cell_tags], element)
     if np.any(np.abs(area) <= 1e-12 * np.max(np.abs(area))):
         raise SolverError("gmsh produced degenerate cells; try a different mesh size")
 
-    line_type = _GMSH_LINE[_ORDER[element]]
+    line_type = spec.gmsh_facet
     edges = {}
     for dim, group in gmsh.model.getPhysicalGroups(1):
         parts = [np.asarray(gmsh.model.mesh.getElementsByType(line_type, int(curve))[1],
                             dtype=np.int64)
                  for curve in gmsh.model.getEntitiesForPhysicalGroup(dim, group)]
-        facets = lookup[np.concatenate(parts).reshape(-1, _ORDER[element] + 1)]
+        facets = lookup[np.concatenate(parts).reshape(-1, spec.facet_nodes)]
         if np.any(facets < 0):
             raise SolverError("gmsh boundary nodes are not nodes of any cell")
         edges[gmsh.model.getPhysicalName(dim, group)] = facets
@@ -286,14 +221,14 @@ def inline_mesh(nodes, cells, edges: dict, element: str) -> Mesh:
     (triangles for P1/P2, quads for Q1/Q2, either orientation) and named boundary ``edges``
     {name: [[a, b], ...]}. P2/Q2 edge midpoints (and Q2 centres) are appended after the given
     nodes. Boundary facets are oriented like their cell (domain on the left)."""
-    _check_element(element)
+    spec = get_element(element)
     points = np.asarray(nodes, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 2 or len(points) < 3:
         raise CaseError(f"must be at least 3 [x, y] pairs, got shape {points.shape}",
                         key="geometry.nodes")
     if not np.all(np.isfinite(points)):
         raise CaseError("node coordinates must be finite numbers", key="geometry.nodes")
-    n, nv = len(points), _N_VERTICES[element]
+    n, nv = len(points), spec.n_vertices
     ckey = "geometry.triangles" if nv == 3 else "geometry.quads"
     cells = _index_array(cells, nv, n, ckey)
     if len(cells) == 0:
@@ -301,7 +236,7 @@ def inline_mesh(nodes, cells, edges: dict, element: str) -> Mesh:
     if np.any(np.sort(cells, axis=1)[:, 1:] == np.sort(cells, axis=1)[:, :-1]):
         raise CaseError("a cell repeats a node", key=ckey)
     scale = float(np.ptp(points, axis=0).max())
-    cells, area = _orient(points, cells, "P1" if nv == 3 else "Q1")  # vertices only so far
+    cells, area = orient(points, cells, "P1" if nv == 3 else "Q1")  # vertices only so far
     bad = np.abs(area) <= 1e-12 * scale**2
     if nv == 4:  # a quad needs a positive Jacobian at every corner: strictly convex
         v = points[cells]
@@ -315,14 +250,14 @@ def inline_mesh(nodes, cells, edges: dict, element: str) -> Mesh:
     if len(unused):
         raise CaseError(f"node {int(unused[0])} belongs to no cell", key="geometry.nodes")
 
-    local = np.stack([np.arange(nv), np.roll(np.arange(nv), -1)], axis=1)  # (nv, 2) ccw edges
+    local = spec.edges[:, :2]  # (nv, 2) ccw edges
     directed = cells[:, local].reshape(-1, 2)  # (n_cells * nv, 2)
     keys = directed.min(axis=1) * n + directed.max(axis=1)
     ukeys, first, inverse, count = np.unique(keys, return_index=True, return_inverse=True,
                                              return_counts=True)
     if np.any(count > 2):
         raise CaseError("an edge is shared by more than two cells", key=ckey)
-    order2 = _ORDER[element] == 2
+    order2 = spec.order == 2
     if order2:
         mid = n + np.arange(len(ukeys))
         ends = directed[first]

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 from ..case.schema import Case
-from ..fem.static import StaticProblem, case_problem
+from ..fem.static import StaticProblem
 from ..solve import Prepared, prepare
+from ..solvers.from_case import case_problem
 
 
 def static_problem(case: Case, prepared: Prepared | None = None, *,

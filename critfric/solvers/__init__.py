@@ -3,7 +3,7 @@ the semi-smooth Newton solver of the static Coulomb problem."""
 
 from .backends import available_backends, factorize, resolve_backend, schur
 from .eigen import ContactState, Spectrum
-from .state import contact_state
+from .from_case import contact_state
 
 __all__ = ["ContactState", "Spectrum", "available_backends", "contact_state", "factorize",
            "resolve_backend", "schur"]

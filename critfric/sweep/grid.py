@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..case.schema import ELEMENTS
 from ..errors import CaseError
+from ..fem.elements import NAMES
 
 NU_POINTS = 11  # points of a range A:B given without N
 
@@ -107,9 +107,9 @@ def parse_sizes(text: str) -> list[float]:
 def parse_elements(text: str) -> list[str]:
     """``P1,P2,...``: distinct element names."""
     values = [v.strip() for v in text.split(",") if v.strip()]
-    bad = [v for v in values if v not in ELEMENTS]
+    bad = [v for v in values if v not in NAMES]
     if not values or bad:
-        raise CaseError(f"got {text!r}; allowed: a comma list of " + ", ".join(ELEMENTS),
+        raise CaseError(f"got {text!r}; allowed: a comma list of " + ", ".join(NAMES),
                         key="--element")
     return list(dict.fromkeys(values))
 

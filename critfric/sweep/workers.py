@@ -27,11 +27,11 @@ from multiprocessing.connection import wait
 import numpy as np
 
 from ..errors import CaseError, SolverError
+from ..fem.elements import get_element
 from .grid import empty_row
 
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                "BLIS_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
-_ORDER = {"P1": 1, "Q1": 1, "P2": 2, "Q2": 2}
 READY = "ready"  # a worker's first message
 CONNECT_TIMEOUT = "10s"  # to reach a Dask scheduler
 WORKER_WAIT = 60  # seconds to wait for a first Dask worker
@@ -39,7 +39,7 @@ WORKER_WAIT = 60  # seconds to wait for a first Dask worker
 
 # ------------------------------------------------------------------------------ scheduling
 def _cost(point) -> float:
-    return 1.0 if point.size is None else (_ORDER[point.element] / point.size) ** 2
+    return 1.0 if point.size is None else (get_element(point.element).order / point.size) ** 2
 
 
 def make_chunks(points: list, jobs: int) -> list[list]:

@@ -10,7 +10,7 @@ from critfric.errors import CaseError
 from critfric.fem.assembly import assemble_elasticity, cell_strain, cell_stress, lame, von_mises
 from critfric.fem.elements import get_element
 from critfric.fem.loads import body_force_load, traction_load
-from critfric.meshing.mesh import Mesh
+from critfric.fem.mesh import Mesh
 
 NAMES = ["P1", "P2", "Q1", "Q2"]
 LAM_G = [(1.0, 1.0), (2.0, 0.7), (1.3e3, 0.37)]

@@ -9,13 +9,13 @@ from helpers import square_case
 import critfric
 from critfric.case.schema import loads_case
 from critfric.errors import CaseError
-from critfric.fem import static
 from critfric.fem.assembly import lame
 from critfric.fem.contact import FREE, SLIP, STUCK
+from critfric.fem.loads import body_force_load, traction_load
 from critfric.multiplicity.problems import static_problem
 from critfric.solve import prepare
 from critfric.solvers import coulomb, eigen
-from critfric.solvers.state import arc_length, contact_state
+from critfric.solvers.from_case import arc_length, contact_state
 
 SQUARE = square_case(size=0.25)
 
@@ -86,12 +86,12 @@ def test_loads_reach_the_right_dofs():
     prob = static_problem(case, prep)
     total = s.to_xy(prob.load).sum(axis=0)  # free DOFs only: the top row is Dirichlet
     top = prep.mesh.edge_nodes(["top"])
-    full = static.body_force_load(prep.mesh, [0.5, -2.0]).reshape(-1, 2)
-    full += static.traction_load(prep.mesh, "right", [3.0, 1.0]).reshape(-1, 2)
+    full = body_force_load(prep.mesh, [0.5, -2.0]).reshape(-1, 2)
+    full += traction_load(prep.mesh, "right", [3.0, 1.0]).reshape(-1, 2)
     expected = full.sum(axis=0) - full[top].sum(axis=0) + [0.25, -1.0]
     np.testing.assert_allclose(total, expected, rtol=1e-13)
     i = int(np.flatnonzero(np.all(np.isclose(prep.mesh.points[s.nodes], [0.5, 0.0]), axis=1))[0])
-    body = s.from_xy(static.body_force_load(prep.mesh, [0.5, -2.0]))
+    body = s.from_xy(body_force_load(prep.mesh, [0.5, -2.0]))
     assert prob.load[s.cn[i]] - body[s.cn[i]] == pytest.approx(1.0)  # n = (0, -1)
     assert prob.load[s.ct[i]] - body[s.ct[i]] == pytest.approx(0.25)
     u = prob.displacement(np.zeros(s.n_dofs))

@@ -7,7 +7,6 @@ from critfric.errors import CaseError
 from critfric.meshing.geometry import (
     Polygon,
     collinear_run,
-    mesh_size_estimate,
     parallelogram,
     polygon,
     rectangle,
@@ -112,16 +111,6 @@ def test_collinear_run():
         collinear_run(seg[[0, 2]])  # the gap of edge 1 between them
     with pytest.raises(CaseError, match="zero length"):
         collinear_run([[1, 1], [1, 1]])
-
-
-def test_mesh_size_estimate_orders():
-    sq = rectangle(1, 1)
-    p1 = mesh_size_estimate(sq, 0.01, "P1")
-    assert 10_000 < p1 < 13_000  # ~ 1 / (0.866 h^2)
-    assert mesh_size_estimate(sq, 0.01, "Q1") < p1
-    assert mesh_size_estimate(sq, 0.01, "P2") == pytest.approx(4 * p1, rel=1e-3)
-    with pytest.raises(CaseError, match="unknown element"):
-        mesh_size_estimate(sq, 0.1, "P3")
 
 
 def test_signed_area_sign():

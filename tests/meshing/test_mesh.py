@@ -7,8 +7,10 @@ import pytest
 
 import critfric.meshing.mesh as mesh_module
 from critfric.errors import CaseError, SolverError
+from critfric.fem.elements import get_element
+from critfric.fem.mesh import Mesh, orient, signed_areas
 from critfric.meshing.geometry import parallelogram, polygon, rectangle
-from critfric.meshing.mesh import Mesh, build_mesh, inline_mesh, signed_areas
+from critfric.meshing.mesh import build_mesh, inline_mesh
 
 ELEMENTS = ["P1", "P2", "Q1", "Q2"]
 NV = {"P1": 3, "P2": 3, "Q1": 4, "Q2": 4}
@@ -133,11 +135,11 @@ def test_unstructured_meshes_are_valid(shape, element):
 def test_orientation_fix_keeps_gmsh_node_order(element):
     m = build_mesh(SPLIT, size=0.2, element=element)
     cells = m.cells.copy()
-    cells[::2] = cells[::2][:, mesh_module._FLIP[element]]  # clockwise, midpoints consistent
+    cells[::2] = cells[::2][:, get_element(element).flip]  # clockwise, midpoints consistent
     flipped = Mesh(m.points, cells, element)
     check_midpoints(flipped)
     assert np.all(signed_areas(m.points, cells, element)[::2] < 0)
-    fixed, _ = mesh_module._orient(m.points, cells, element)
+    fixed, _ = orient(m.points, cells, element)
     np.testing.assert_array_equal(fixed, m.cells)
 
 

@@ -1,0 +1,69 @@
+"""The mesh container: points, cells and named boundary edges, with what every stage asks of it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .elements import get_element
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """A 2D finite-element mesh.
+
+    points : (n_nodes, 2) float64 node coordinates.
+    cells  : (n_cells, n_local) int64 node indices, local order as in gmsh
+             (P1: 3 vertices counterclockwise; P2: 3 vertices then edge midpoints 01, 12, 20;
+              Q1: 4 vertices counterclockwise; Q2: 4 vertices, midpoints 01, 12, 23, 30, centre).
+    element: "P1" | "P2" | "Q1" | "Q2".
+    edges  : boundary group name -> (n_facets, 2) int64 (order 1) or (n_facets, 3) (order 2:
+             end, end, midpoint) node indices of the boundary facets in that group.
+    """
+
+    points: np.ndarray
+    cells: np.ndarray
+    element: str
+    edges: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.points)
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.cells)
+
+    @property
+    def diameter(self) -> float:
+        """h: the largest cell diameter (longest distance between two vertices of a cell)."""
+        v = self.points[self.cells[:, :get_element(self.element).n_vertices]]
+        return float(np.linalg.norm(v[:, :, None, :] - v[:, None, :, :], axis=-1).max())
+
+    def edge_nodes(self, names) -> np.ndarray:
+        """Sorted unique node indices on the boundary groups ``names``."""
+        parts = [self.edges[name].ravel() for name in names]
+        return np.unique(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.int64)
+
+
+def shoelace(vertices: np.ndarray) -> np.ndarray:
+    """Signed area of polygons (..., n, 2) -> (...), positive when counterclockwise."""
+    v = np.asarray(vertices, dtype=np.float64)
+    w = np.roll(v, -1, axis=-2)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return 0.5 * np.sum(v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0], axis=-1)
+
+
+def signed_areas(points: np.ndarray, cells: np.ndarray, element: str) -> np.ndarray:
+    """Shoelace area of each cell's vertex polygon (positive when counterclockwise)."""
+    return shoelace(points[cells[:, :get_element(element).n_vertices]])
+
+
+def orient(points, cells, element):
+    """Cells reordered counterclockwise, and their (signed-before-flip) areas."""
+    area = signed_areas(points, cells, element)
+    cells = cells.copy()
+    cw = area < 0
+    cells[cw] = cells[cw][:, get_element(element).flip]
+    return cells, area
