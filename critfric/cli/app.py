@@ -1,7 +1,7 @@
 """The command line: thin typer commands over the library's plain functions.
 
-Only this module prints or exits: a :class:`CritfricError` becomes one message on stderr and
-its exit code (2 for bad input, 1 for a numerical failure); Ctrl-C exits with 130.
+Only the cli package prints or exits; :mod:`.failures` turns errors into messages and exit
+codes (2 for bad input, 1 for a numerical failure, 130 for Ctrl-C).
 """
 
 from __future__ import annotations
@@ -15,11 +15,11 @@ import typer
 
 from .._version import __version__
 from ..case.schema import BACKENDS, METHODS, OVERRIDES, load_case, shipped_cases
-from ..errors import CritfricError
 from ..fem.elements import NAMES
 from ..files.results import default_output, read_summary, write_result
 from ..files.safety import check_output, interrupt_guard, output_lock
 from ..solve import solve_case
+from .failures import INTERRUPTED, reported, say
 
 app = typer.Typer(
     add_completion=False,
@@ -33,15 +33,6 @@ MaxDofs = Annotated[Optional[int], typer.Option(
     "--max-dofs", min=1, help="Refuse meshes above this many DOFs [default: what memory allows].")]
 TrustGeo = Annotated[bool, typer.Option(
     "--trust-geo", help="Mesh a .geo script even if it can run programs or touch other files.")]
-
-
-def _err(message: str) -> None:
-    typer.echo(message, err=True)
-
-
-def _fail(exc: CritfricError) -> None:
-    _err(f"critfric: error: {exc}")
-    raise typer.Exit(exc.exit_code)
 
 
 def _fmt(values, n: int = 4) -> str:
@@ -87,7 +78,7 @@ def solve(
              "method": method, "backend": backend,
              "output": str(output) if output is not None else None}
     overrides = {OVERRIDES[k]: v for k, v in given.items() if v is not None}
-    try:
+    with reported("no result written (an existing file is unchanged)"):
         loaded = load_case(case, overrides=overrides)
         path = check_output(default_output(loaded), force=force)
         with interrupt_guard() as interrupted, output_lock(path):
@@ -99,21 +90,16 @@ def solve(
             from ..plots.figures import plot_file
 
             for png in plot_file(path):
-                _err(f"wrote {png}")
-    except CritfricError as exc:
-        _fail(exc)
-    except KeyboardInterrupt:  # typer would exit 130 silently
-        _err("critfric: interrupted: no result written (an existing file is unchanged)")
-        raise typer.Exit(130) from None
+                say(f"wrote {png}")
     for note in result.notes:
-        _err(f"critfric: note: {note}")
+        say(f"critfric: note: {note}")
     for warning in result.warnings:
-        _err(f"critfric: warning: {warning}")
+        say(f"critfric: warning: {warning}")
     summary = result.summary()
     if as_json:
         typer.echo(json.dumps(summary))
         return
-    _err(f"wrote {path}")
+    say(f"wrote {path}")
     typer.echo(f"case      {loaded.title or loaded.name} ({loaded.source})")
     typer.echo(f"mesh      {result.element}, h = {result.h:.4g}, {result.n_dofs} DOFs, "
                f"{result.n_contact} contact nodes")
@@ -139,10 +125,8 @@ def table(
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list instead."),
 ) -> None:
     """Print a table of the results stored in solve files."""
-    try:
+    with reported():
         rows = [read_summary(f) for f in files]
-    except CritfricError as exc:
-        _fail(exc)
     typer.echo(json.dumps(rows) if as_json else _table(rows))
 
 
@@ -179,13 +163,14 @@ def sweep(
     from ..sweep.runner import make_grid, report, run_sweep
     from .progress import progress_bar
 
-    try:
+    with reported("every finished point is kept in the sweep file; run the same command "
+                  "again to compute only the rest"):
         loaded = load_case(case or "unit-square",
                            overrides={"mesh.grading": grading, "solve.count": count})
         grid = make_grid(loaded, nu=nu, size=size, element=element, max_dofs=max_dofs,
                          trust_geo=trust_geo)
         for note in grid.notes:
-            _err(f"critfric: note: {note}")
+            say(f"critfric: note: {note}")
         out = output or sweep_output(loaded)
         with interrupt_guard() as interrupted, output_lock(out), \
                 progress_bar(enabled=not as_json and sys.stderr.isatty()) as on_point:
@@ -198,15 +183,9 @@ def sweep(
                                force=force, on_point=point_done, max_dofs=max_dofs,
                                trust_geo=trust_geo)
         pngs = plot_file(result.path) if plot else []
-    except CritfricError as exc:
-        _fail(exc)
-    except KeyboardInterrupt:  # typer would exit 130 silently
-        _err("critfric: interrupted: every finished point is kept in the sweep file; run the "
-             "same command again to compute only the rest")
-        raise typer.Exit(130) from None
     typer.echo(json.dumps(result.summary()) if as_json else report(result))
     for png in pngs:
-        _err(f"wrote {png}")
+        say(f"wrote {png}")
 
 
 @app.command()
@@ -218,10 +197,8 @@ def plot(
     """Write the figures (PNG) of a sweep or solve file next to it."""
     from ..plots.figures import plot_file
 
-    try:
+    with reported():
         pngs = plot_file(file, nu=nu)
-    except CritfricError as exc:
-        _fail(exc)
     for png in pngs:
         typer.echo(str(png))
 
@@ -237,10 +214,8 @@ def export(
     """Export the mesh and the critical modes (Phi, stress, von Mises) for ParaView."""
     from ..files.export import export_file
 
-    try:
+    with reported():
         path = export_file(file, fmt=fmt, output=output, force=force)
-    except CritfricError as exc:
-        _fail(exc)
     typer.echo(str(path))
 
 
@@ -260,16 +235,14 @@ def solutions(
     from ..multiplicity.enumeration import parse_frictions, report, solutions_of_case
     from ..plots.static import default_plot, solutions_plot
 
-    try:
+    with reported():
         loaded = load_case(case, overrides={"material.nu": nu})
         sweep = solutions_of_case(loaded, parse_frictions(friction))
         png = None if no_plot else solutions_plot(
             sweep, plot or default_plot(loaded, "solutions"), title=loaded.title or "")
-    except CritfricError as exc:
-        _fail(exc)
     typer.echo(json.dumps([e.to_json() for e in sweep]) if as_json else report(sweep))
     if png:
-        _err(f"wrote {png}")
+        say(f"wrote {png}")
 
 
 @app.command()
@@ -291,15 +264,13 @@ def verify(
     from ..plots.static import branch_plot, default_plot
 
     given = {"nu": nu, "element": element, "size": size}
-    try:
+    with reported():
         loaded = load_case(case, overrides={OVERRIDES[k]: v for k, v in given.items()})
         result = run_verify(loaded, off=off)
         png = None if no_plot else branch_plot(result, plot or default_plot(loaded, "verify"))
-    except CritfricError as exc:
-        _fail(exc)
     typer.echo(json.dumps(result.summary()) if as_json else report(result))
     if png:
-        _err(f"wrote {png}")
+        say(f"wrote {png}")
     if not result.passed:
         raise typer.Exit(1)
 
@@ -321,6 +292,6 @@ def main_callback(
 def main() -> None:
     try:
         app()
-    except KeyboardInterrupt:
-        _err("critfric: interrupted")
-        sys.exit(130)
+    except KeyboardInterrupt:  # outside a command (start-up, option parsing)
+        say("critfric: interrupted")
+        sys.exit(INTERRUPTED)

@@ -1,0 +1,38 @@
+"""The one place where errors become messages and exit codes.
+
+A :class:`CritfricError` becomes ``critfric: error: <message>`` on stderr and its exit code
+(2 for bad input, 1 for a numerical or I/O failure); Ctrl-C becomes ``critfric: interrupted``
+with what was kept, and exit code 130.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import typer
+
+from ..errors import CritfricError
+
+INTERRUPTED = 130  # the shell's code for a process ended by SIGINT
+
+
+def say(message: str) -> None:
+    """One line on stderr (messages, notes, warnings, written files)."""
+    typer.echo(message, err=True)
+
+
+@contextmanager
+def reported(kept: str = "nothing was written") -> Iterator[None]:
+    """Run a command's body; turn its failures into a message and an exit code.
+
+    kept: what an interruption leaves behind, said after ``critfric: interrupted:``.
+    """
+    try:
+        yield
+    except CritfricError as exc:
+        say(f"critfric: error: {exc}")
+        raise typer.Exit(exc.exit_code) from None
+    except KeyboardInterrupt:  # typer would exit 130 without a word
+        say(f"critfric: interrupted: {kept}")
+        raise typer.Exit(INTERRUPTED) from None
