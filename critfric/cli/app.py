@@ -160,7 +160,7 @@ def sweep(
     """Sweep nu, mesh size and element; resumable; h -> 0 limits by Richardson extrapolation."""
     from ..plots.figures import plot_file
     from ..sweep.runner import default_output as sweep_output
-    from ..sweep.runner import make_grid, report, run_sweep
+    from ..sweep.runner import make_grid, report_sweep, run_sweep
     from .progress import progress_bar
 
     with reported("every finished point is kept in the sweep file; run the same command "
@@ -183,7 +183,7 @@ def sweep(
                                force=force, on_point=point_done, max_dofs=max_dofs,
                                trust_geo=trust_geo)
         pngs = plot_file(result.path) if plot else []
-    typer.echo(json.dumps(result.summary()) if as_json else report(result))
+    typer.echo(json.dumps(result.summary()) if as_json else report_sweep(result))
     for png in pngs:
         say(f"wrote {png}")
 
@@ -232,7 +232,7 @@ def solutions(
 ) -> None:
     """Every solution of the static Coulomb problem (2.8) of a small case (p <= 8 contact
     nodes), by enumeration, over a range of friction values."""
-    from ..multiplicity.enumeration import parse_frictions, report, solutions_of_case
+    from ..multiplicity.enumeration import parse_frictions, report_solutions, solutions_of_case
     from ..plots.static import default_plot, solutions_plot
 
     with reported():
@@ -240,7 +240,7 @@ def solutions(
         sweep = solutions_of_case(loaded, parse_frictions(friction))
         png = None if no_plot else solutions_plot(
             sweep, plot or default_plot(loaded, "solutions"), title=loaded.title or "")
-    typer.echo(json.dumps([e.to_json() for e in sweep]) if as_json else report(sweep))
+    typer.echo(json.dumps([e.to_json() for e in sweep]) if as_json else report_solutions(sweep))
     if png:
         say(f"wrote {png}")
 
@@ -259,7 +259,7 @@ def verify(
 ) -> None:
     """Check the explicit non-uniqueness example of section 5 at the critical coefficient:
     a whole branch u + delta Phi of solutions. Exit code 1 if the check fails."""
-    from ..multiplicity.verify import report
+    from ..multiplicity.verify import report_verification
     from ..multiplicity.verify import verify as run_verify
     from ..plots.static import branch_plot, default_plot
 
@@ -268,7 +268,7 @@ def verify(
         loaded = load_case(case, overrides={OVERRIDES[k]: v for k, v in given.items()})
         result = run_verify(loaded, off=off)
         png = None if no_plot else branch_plot(result, plot or default_plot(loaded, "verify"))
-    typer.echo(json.dumps(result.summary()) if as_json else report(result))
+    typer.echo(json.dumps(result.summary()) if as_json else report_verification(result))
     if png:
         say(f"wrote {png}")
     if not result.passed:

@@ -20,13 +20,7 @@ def traction_load(mesh: Mesh, edge_name: str, traction) -> np.ndarray:
     facets = np.asarray(mesh.edges[edge_name], dtype=np.int64)
     if facets.ndim != 2 or facets.shape[1] not in (2, 3):
         raise CaseError(f"edge group {edge_name!r} has shape {facets.shape}; need (n, 2) or (n, 3)")
-    order = facets.shape[1] - 1
-    s, w = facet_quadrature(order)
-    values, derivs = facet_shape(s, order)  # (n_fnodes, n_qp)
-    X = np.asarray(mesh.points, dtype=float)[facets]  # (n_facets, n_fnodes, 2)
-    jac = np.linalg.norm(np.einsum("fai,aq->fqi", X, derivs), axis=-1)  # |dx/ds|
-    weights = np.einsum("fq,q,aq->fa", jac, w, values)  # int N_a ds per facet node
-    return _scatter(mesh.n_nodes, facets, weights, traction)
+    return facet_load(mesh, facets, np.asarray(traction, dtype=float).reshape(2))
 
 
 def body_force_load(mesh: Mesh, f) -> np.ndarray:
@@ -65,13 +59,14 @@ def facets_in(facets: np.ndarray, mesh: Mesh, names) -> np.ndarray:
     return np.isin(keys, groups @ np.array([mesh.n_nodes, 1]))
 
 
-def facet_load(mesh: Mesh, facets: np.ndarray, traction: np.ndarray) -> np.ndarray:
-    """Consistent nodal load (2 n_nodes,) of a traction that is constant on each facet."""
+def facet_load(mesh: Mesh, facets: np.ndarray, traction) -> np.ndarray:
+    """Consistent nodal load (2 n_nodes,) of a traction (2,) or (k, 2) constant on each of
+    the ``facets`` (k, 2 or 3: end, end[, mid])."""
     order = facets.shape[1] - 1
     s, w = facet_quadrature(order)
-    values, derivs = facet_shape(s, order)
-    X = mesh.points[facets]  # (k, n_fnodes, 2)
-    jac = np.linalg.norm(np.einsum("fai,aq->fqi", X, derivs), axis=-1)
+    values, derivs = facet_shape(s, order)  # (n_fnodes, n_qp)
+    X = np.asarray(mesh.points, dtype=float)[facets]  # (k, n_fnodes, 2)
+    jac = np.linalg.norm(np.einsum("fai,aq->fqi", X, derivs), axis=-1)  # |dx/ds|
     weights = np.einsum("fq,q,aq->fa", jac, w, values)  # int N_a ds on each facet
     traction = np.broadcast_to(np.asarray(traction, dtype=float), (len(facets), 2))
     out = np.zeros((mesh.n_nodes, 2))

@@ -73,7 +73,7 @@ def open_sweep(path: Path, *, case, grid, force: bool = False) -> set[tuple]:
             raise CaseError("was written for another case or grid (nu, size, element, "
                             "count, grading); pass --force to discard it and start over, or "
                             "choose another --output", file=str(path), key="--output")
-        return {_key(r) for r in read_sweep(path)["rows"]}
+        return {row_key(r) for r in read_sweep(path)["rows"]}
     count = int(case.solve["count"])
 
     def fill(f: h5py.File) -> None:
@@ -189,5 +189,6 @@ def _scalar(v):
     return v
 
 
-def _key(row: dict) -> tuple:
+def row_key(row: dict) -> tuple:
+    """(element, size or -1, nu): what identifies a sweep row (and a sweep point)."""
     return (row["element"], -1.0 if row["size"] is None else row["size"], row["nu"])

@@ -108,10 +108,10 @@ def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = F
             gmsh.model.mesh.generate(2)
             for _ in range(n_refine):
                 gmsh.model.mesh.refine()
-            if get_element(element).order == 2:
+            if get_element(element).order > 1:
                 gmsh.option.setNumber("Mesh.SecondOrderLinear", 1)
                 gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 0)
-                gmsh.model.mesh.setOrder(2)
+                gmsh.model.mesh.setOrder(get_element(element).order)
             return _extract(element)
         except CritfricError:
             raise

@@ -30,13 +30,13 @@ from scipy.optimize import linprog
 from ..errors import CaseError, SolverError
 from ..fem.static import StaticProblem
 from ..solvers.coulomb import condense, violations
+from ..solvers.eigen import INFINITE_TOL
 from .problems import static_problem
 
 MAX_NODES = 8
 SINGULAR_TOL = 1e-9
 RANK_TOL = 1e-8
 REAL_TOL = 1e-8
-INFINITE_TOL = 1e-12
 FEASIBLE_TOL = 1e-9
 SAME_TOL = 1e-7
 CHUNK = 4096  # status combinations per batched SVD
@@ -45,7 +45,7 @@ FREE, STUCK, SLIP_PLUS, SLIP_MINUS = range(4)
 
 
 @dataclass
-class Point:
+class Solution:
     """Contact values of one solution, sorted along t, and the status of each node
     (free, stuck, slip+, slip-, or 'cone': on the Coulomb cone without slipping)."""
 
@@ -61,14 +61,14 @@ class Point:
 
 
 @dataclass
-class Branch:
+class Continuum:
     """A continuum of solutions: ``point`` + span of ``directions`` within the inequalities.
     For one direction, ``ends`` are its two end points (None where unbounded)."""
 
     status: list[str]
-    point: Point
-    directions: list[Point]
-    ends: list[Point | None] | None
+    point: Solution
+    directions: list[Solution]
+    ends: list[Solution | None] | None
     code: np.ndarray = field(default=None, repr=False)
     friction: float = 0.0
 
@@ -89,8 +89,8 @@ class Enumeration:
     """All solutions at one friction value: isolated points and branches (continua)."""
 
     friction: float
-    solutions: list[Point]
-    branches: list[Branch]
+    solutions: list[Solution]
+    branches: list[Continuum]
 
     @property
     def count(self) -> int:
@@ -132,9 +132,9 @@ class Enumerator:
         p = self.p
         return u[..., :p], u[..., p:], z[..., :p], z[..., p:]
 
-    def point(self, z: np.ndarray, friction: float) -> Point:
+    def point(self, z: np.ndarray, friction: float) -> Solution:
         Un, Ut, X, Y = self.contact(z)
-        return Point(Un, Ut, X, Y, self._labels(Un, Ut, X, Y, friction))
+        return Solution(Un, Ut, X, Y, self._labels(Un, Ut, X, Y, friction))
 
     def _labels(self, Un, Ut, X, Y, friction) -> list[str]:
         tf, td = FEASIBLE_TOL * self.F, FEASIBLE_TOL * self.D
@@ -226,11 +226,11 @@ class Enumerator:
                 if np.abs(A[i] @ z[i] - b[i]).max() > FEASIBLE_TOL * scale:
                     continue
                 found = self._continuum(codes[i], z[i], N, friction)
-                if isinstance(found, Branch):
+                if isinstance(found, Continuum):
                     branches.append(found)
                 elif found is not None:
                     isolated.append(found)
-        kept: list[Branch] = []
+        kept: list[Continuum] = []
         for br in branches:  # the same continuum may come from two status combinations
             zs = [np.concatenate([e.X, e.Y]) for e in [br.point] + (br.ends or []) if e]
             if not any(all(self._on(z, k) for z in zs) for k in kept):
@@ -244,7 +244,7 @@ class Enumerator:
         return np.concatenate([X / self.F, Y / self.F, Un / self.D, Ut / self.D])
 
     def _continuum(self, code, z0, N, friction):
-        """The feasible part of z0 + span(N): a Branch, a single point (z) or None."""
+        """The feasible part of z0 + span(N): a Continuum, a single point (z) or None."""
         G, h = self.inequalities(code, friction)
         d = N.shape[1]
         for slack in (0.0, FEASIBLE_TOL):  # exact ends if feasible, else within the tolerance
@@ -261,18 +261,18 @@ class Enumerator:
         if d == 1:
             ends = [None if not np.isfinite(c) else self.point(z0 + N[:, 0] * c, friction)
                     for c in (lo[0], hi[0])]
-        return Branch([LABELS[s] for s in code], self.point(z0 + N @ centre, friction),
+        return Continuum([LABELS[s] for s in code], self.point(z0 + N @ centre, friction),
                       [self._direction(N[:, j]) for j in range(d)], ends, code, friction)
 
-    def _direction(self, n: np.ndarray) -> Point:
+    def _direction(self, n: np.ndarray) -> Solution:
         """A null direction n of the forces with its displacements, the largest U_t > 0."""
         du, p = self.C @ n, self.p
         ref = du[p:] if np.any(du[p:]) else n
         sign = np.sign(ref[np.argmax(np.abs(ref))]) or 1.0
         du, n = sign * du, sign * n
-        return Point(du[:p], du[p:], n[:p], n[p:], [])
+        return Solution(du[:p], du[p:], n[:p], n[p:], [])
 
-    def _on(self, z: np.ndarray, branch: "Branch") -> bool:
+    def _on(self, z: np.ndarray, branch: "Continuum") -> bool:
         """Whether the point z lies on (the closure of) a branch."""
         Z0 = np.concatenate([branch.point.X, branch.point.Y])
         N = np.array([np.concatenate([d.X, d.Y]) for d in branch.directions]).T
@@ -342,7 +342,7 @@ def solutions_of_case(case, frictions, *, prepared=None) -> list[Enumeration]:
     return enumerate_solutions(static_problem(case, prepared, friction=0.0), frictions)
 
 
-def report(sweep: list[Enumeration]) -> str:
+def report_solutions(sweep: list[Enumeration]) -> str:
     """A plain-text table of a sweep: per friction value, its solutions and branches."""
     f4 = lambda a: "[" + ", ".join(f"{v:.6g}" for v in a) + "]"
     lines = [f"{'friction':>12} {'count':>5} {'branch':>6}  solutions: status, U_t, X (along t)"]

@@ -261,7 +261,7 @@ def verify(case: Case | str | Path, *, off: float = 0.01, deltas=None,
     return Verification(case, crit, others)
 
 
-def report(v: Verification) -> str:
+def report_verification(v: Verification) -> str:
     """The table of ``critfric verify``: the largest violation of each condition per delta."""
     b = v.critical
     lines = [f"critical friction coefficient {b.friction:.10g} (slip along "

@@ -169,7 +169,7 @@ def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = 
     finally:
         if client is not None:
             client.close()
-    stored = {tuple(_row_key(r)): r for r in sweepfile.read_sweep(path)["rows"]}
+    stored = {sweepfile.row_key(r): r for r in sweepfile.read_sweep(path)["rows"]}
     rows = [stored[p.key] for p in points]
     limits = limits_of(rows)
     sweepfile.write_limits(path, limits)
@@ -186,16 +186,12 @@ def _in_process(spec: dict, points: list[Point]):
             yield p, run_point(spec, p)
 
 
-def _row_key(row: dict) -> tuple:
-    return (row["element"], -1.0 if row["size"] is None else row["size"], row["nu"])
-
-
 def default_output(case: Case) -> Path:
     """``<case name>_sweep.h5`` in the current directory."""
     return Path(f"{case.name}_sweep.h5")
 
 
-def report(sweep: Sweep) -> str:
+def report_sweep(sweep: Sweep) -> str:
     """The text summary of ``critfric sweep``: every point, then the h -> 0 limits."""
     def num(v, fmt):
         return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else fmt % v
