@@ -61,7 +61,8 @@ class Result:
     timings: dict[str, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
-    backend: str = "scipy"  # sparse linear solver used (critfric.linsolve)
+    backend: str = "scipy"  # sparse linear solver used (critfric.solvers.backends)
+    complete: bool = True  # every eigenvalue found (False: ARPACK, complete within a radius)
 
     @property
     def n_contact(self) -> int:
@@ -91,6 +92,7 @@ class Result:
             "size": self.size,
             "method": self.solver,
             "backend": self.backend,
+            "complete": self.complete,
             "seconds": round(self.seconds, 4),
             "warnings": list(self.warnings),
         }
@@ -200,7 +202,7 @@ def solve_prepared(prep: Prepared, case: Case) -> Result:
         size=case.mesh["size"], h=prep.mesh.diameter, solver=spec.method,
         applications=spec.applications, n_infinite=spec.n_infinite,
         seconds=sum(timings.values()), timings=timings, warnings=spec.warnings,
-        notes=spec.notes, backend=spec.backend,
+        notes=spec.notes, backend=spec.backend, complete=spec.complete,
     )
 
 

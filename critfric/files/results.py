@@ -52,7 +52,8 @@ def write_result(result, path: Path | str, *, force: bool = False) -> Path:
             "case_text": case.text, "nu": result.nu, "E": result.E, "element": result.element,
             "size": np.nan if result.size is None else result.size, "h": result.h,
             "n_dofs": result.n_dofs, "n_contact": result.n_contact, "method": s["method"],
-            "solver": result.solver, "backend": result.backend, "shift": s["shift"], "count": s["count"],
+            "solver": result.solver, "backend": result.backend, "complete": result.complete,
+            "shift": s["shift"], "count": s["count"],
             "gamma": s["gamma"], "tol": s["tol"], "real_tol": s["real_tol"],
             "infinite_tol": INFINITE_TOL, "residual_tol": RESIDUAL_TOL,
             "applications": result.applications, "n_infinite": result.n_infinite,
@@ -110,6 +111,7 @@ def read_summary(path: Path | str) -> dict:
                 "element": str(a["element"]), "nu": float(a["nu"]), "h": float(a["h"]),
                 "size": None if np.isnan(size) else size, "method": str(a["solver"]),
                 "backend": str(a.get("backend", "scipy")),
+                "complete": bool(a.get("complete", True)),
                 "seconds": float(a["seconds"]), "warnings": json.loads(a["warnings"]),
             }
     except (OSError, KeyError) as exc:

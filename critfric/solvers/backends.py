@@ -10,8 +10,9 @@ Backends (``BACKENDS``; ``"auto"`` takes the first available of ``PREFERENCE``):
 
 * ``scipy``, always there: SuperLU with diagonal pivots and a symmetric ordering, never the
   default COLAMD (~16x slower and ~8x larger on these matrices): nested dissection of the mesh
-  when the caller gives it (:mod:`critfric.ordering`, ~3x faster than the alternative),
-  else minimum degree on A^T + A. Its Schur complement costs one solve per contact DOF.
+  when the caller gives it (:mod:`critfric.solvers.ordering`, ~3x faster than the
+  alternative), else minimum degree on A^T + A. Its Schur complement comes from the same
+  factorization, with the Schur rows ordered last.
 * ``pardiso``: Intel MKL PARDISO, from the ``pypardiso`` wheel (``pip install
   critfric[fast]``, x86-64), called directly through ctypes: METIS ordering, Cholesky-class
   factorization (mtype 2) and the Schur complement computed during the factorization
@@ -33,8 +34,8 @@ import scipy.sparse.linalg as spla
 from ..errors import SolverError
 
 BACKENDS = ("scipy", "pardiso")
+REFINE_STEPS = 3  # ScipySchur.extend: refinement steps on the contact rows (1-2 are used)
 PREFERENCE = ("pardiso", "scipy")  # "auto": fastest first
-SCHUR_BLOCK_BYTES = 2e8  # scipy Schur complement: dense right-hand-side blocks up to this
 
 _SINGULAR = ("the stiffness matrix is singular. Check that the Dirichlet edges hold the body "
              "(no rigid motion left).")
@@ -224,37 +225,67 @@ def factorize(A: sp.spmatrix, *, symmetric: bool = True, backend: str = "scipy",
 
 
 class ScipySchur:
-    """Schur complement by SuperLU: the interior block factored once, then one solve per
-    index (in blocks of right-hand sides, never an n x len(index) dense array)."""
+    """Schur complement by one SuperLU factorization of A with the ``index`` rows ordered
+    last (after ``order``, a fill-reducing order of all rows; minimum degree if None).
+
+    Without pivoting, A = L U and the trailing blocks give S = L_cc U_cc exactly: no solve
+    per contact DOF. The factorization is kept: :meth:`solve` serves the whole matrix and
+    :meth:`extend` costs one solve."""
 
     backend = "scipy"
 
     def __init__(self, A: sp.spmatrix, index: np.ndarray, order=None):
         A = sp.csr_matrix(A)
-        keep = np.ones(A.shape[0], dtype=bool)
-        keep[index] = False
-        self._index, self._interior, n = index, np.flatnonzero(keep), A.shape[0]
-        Aci = A[index][:, self._interior].tocsr()
-        self._Aic = Aci.T.tocsc()
-        S = A[index][:, index].toarray()
-        if len(self._interior):
-            if order is not None:  # the same order restricted to the interior
-                order = (np.cumsum(keep) - 1)[np.asarray(order)[keep[order]]]
-            self._factor = ScipyFactor(A[self._interior][:, self._interior], symmetric=True,
-                                       order=order)
-            block = max(1, min(256, int(SCHUR_BLOCK_BYTES / (8 * len(self._interior)))))
-            for j in range(0, len(index), block):
-                cols = slice(j, min(j + block, len(index)))
-                S[:, cols] -= Aci @ self._factor.solve(self._Aic[:, cols].toarray())
+        n, k = A.shape[0], len(index)
+        if order is None:
+            from .ordering import minimum_degree
+
+            order = minimum_degree(A)
+        last = np.zeros(n, dtype=bool)
+        last[index] = True
+        order = np.asarray(order)
+        self._order = np.concatenate([order[~last[order]], index])
+        try:
+            lu = spla.splu(A[self._order][:, self._order].tocsc(), permc_spec="NATURAL",
+                           diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        except RuntimeError as exc:  # "Factor is exactly singular"
+            raise SolverError(f"the sparse factorization failed ({exc}): {_SINGULAR}") from None
+        tail = np.arange(n - k, n)
+        if np.array_equal(lu.perm_c[tail], tail) and np.array_equal(lu.perm_r[tail], tail):
+            L = lu.L
+            Lcc = L[n - k:, n - k:].toarray()
+            del L
+            S = Lcc @ lu.U[n - k:, n - k:].toarray()
+        else:  # SuperLU reordered the tail after all: S^-1 from k solves
+            E = np.zeros((n, k))
+            E[tail, np.arange(k)] = 1.0
+            S = np.linalg.inv(lu.solve(E)[tail])
+        self._lu, self._index, self.shape = lu, np.asarray(index), (n, n)
         self.S = 0.5 * (S + S.T)
-        self.shape = (n, n)
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """A^-1 b for b of shape (n,) or (n, m)."""
+        b = np.asarray(b, dtype=np.float64)
+        x = np.empty_like(b)
+        x[self._order] = self._lu.solve(np.ascontiguousarray(b[self._order]))
+        return x
 
     def extend(self, xc: np.ndarray) -> np.ndarray:
+        """x with x[index] = xc and (A x)_i = 0 on the other rows.
+
+        x = A^-1 [0; f] has zero interior rows for any f; f = S xc, refined on the contact
+        rows (x_c = S^-1 f carries the conditioning of S), then x[index] = xc exactly."""
         xc = np.asarray(xc, dtype=np.float64)
-        x = np.zeros((self.shape[0],) + xc.shape[1:])
+        b = np.zeros((self.shape[0],) + xc.shape[1:])
+        x = np.zeros_like(b)
+        error = xc
+        for _ in range(REFINE_STEPS):
+            b[self._index] = self.S @ error
+            x += self.solve(b)
+            error = xc - x[self._index]
+            if np.abs(error).max() <= 1e-15 * np.abs(xc).max():
+                break
         x[self._index] = xc
-        if len(self._interior):
-            x[self._interior] = -self._factor.solve(self._Aic @ xc)
         return x
 
 

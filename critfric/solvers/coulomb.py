@@ -28,13 +28,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from ..errors import CaseError, SolverError
 from ..fem.contact import FREE, SLIP, STUCK, ContactSystem
 from ..fem.static import StaticProblem
-from .backends import factorize
+from .backends import ScipySchur
 from .eigen import ContactState
+from .ordering import fill_order
 
 TOL = 1e-10
 MAXITER = 50
@@ -43,60 +43,18 @@ SETTLE = 3
 
 
 class Condensed:
-    """K factored once, contact DOFs last; ``S`` (2p, 2p): Schur complement onto (U_n, U_t)."""
+    """K factored once with the contact DOFs last (:class:`critfric.solvers.backends.ScipySchur`);
+    ``S`` (2p, 2p): the Schur complement onto (U_n, U_t); ``solve``: K^-1."""
 
     def __init__(self, K: sp.spmatrix, system: ContactSystem):
-        m, p = K.shape[0], system.n_contact
         self.cdofs = np.concatenate([system.cn, system.ct])
-        self.p = p
-        K = sp.csc_matrix(K)
-        try:
-            self.order = _contact_last(K, self.cdofs, system)
-            lu = spla.splu(K[self.order][:, self.order].tocsc(), permc_spec="NATURAL",
-                           diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-        except RuntimeError as exc:
-            raise SolverError(f"the sparse factorization failed ({exc}): the stiffness matrix "
-                              "is singular; check that the Dirichlet edges hold the body"
-                              ) from None
-        tail = np.arange(m - 2 * p, m)
-        if np.array_equal(lu.perm_c[tail], tail) and np.array_equal(lu.perm_r[tail], tail):
-            L, U = lu.L.tocsc()[tail][:, tail], lu.U.tocsc()[tail][:, tail]
-            S = (L @ U).toarray()
-            self._lu, self._factor = lu, None
-        else:  # SuperLU reordered the tail: flexibility from 2p solves instead
-            self._lu, self._factor = None, factorize(K, symmetric=True)
-            E = np.zeros((m, 2 * p))
-            E[self.cdofs, np.arange(2 * p)] = 1.0
-            S = np.linalg.inv(self._factor.solve(E)[self.cdofs])
-        self.S = 0.5 * (S + S.T)
+        self.p = system.n_contact
+        self._schur = ScipySchur(K, self.cdofs, order=fill_order(system))
+        self.S = self._schur.S
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """K^-1 b for b of shape (m,) or (m, k)."""
-        if self._factor is not None:
-            return self._factor.solve(b)
-        x = np.empty_like(b, dtype=float)
-        x[self.order] = self._lu.solve(np.ascontiguousarray(b[self.order], dtype=float))
-        return x
-
-
-def _contact_last(K: sp.csc_matrix, cdofs: np.ndarray, system: ContactSystem) -> np.ndarray:
-    """A fill-reducing DOF order (minimum degree on the node graph) with ``cdofs`` last."""
-    m = K.shape[0]
-    node = system.free // 2
-    _, node = np.unique(node, return_inverse=True)
-    A = sp.coo_matrix(K)
-    graph = sp.coo_matrix((np.ones(A.nnz), (node[A.row], node[A.col]))).tocsr()
-    graph.data[:] = 1.0
-    # (degree + 1) I - adjacency: diagonally dominant, factors without pivoting, and cheaply
-    # (a quarter of K's entries): only its minimum-degree order is used
-    graph = (sp.diags(np.asarray(graph.sum(axis=1)).ravel() + 1.0) - graph).tocsc()
-    perm = spla.splu(graph, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                     options={"SymmetricMode": True}).perm_c  # perm[i]: position of node i
-    dof_rank = perm[node] * 2 + (system.free % 2)
-    order = np.argsort(dof_rank, kind="stable")
-    is_contact = np.zeros(m, dtype=bool)
-    is_contact[cdofs] = True
-    return np.concatenate([order[~is_contact[order]], cdofs])
+        return self._schur.solve(b)
 
 
 class Complementarity:

@@ -11,8 +11,10 @@ Three solvers, which agree to round-off:
   factored once; each application is one solve. 'LM' on T is shift-invert at 0 for free.
   Beyond the lowest real ones, the spectrum of T accumulates near the imaginary axis at
   |1/alpha| ~ (1 - 2 nu) / (2 (1 - nu)); a real alpha hidden behind that cluster (small nu)
-  is out of ARPACK's reach at small k. So: k = 2 count, then WIDEN times more, then T is
-  formed explicitly (p0 solves, in blocks) and every eigenvalue is computed.
+  is out of ARPACK's reach at small k. So: k = 2 count, then WIDEN times more, until `count`
+  positive AND `count` negative real values are found; else T is formed explicitly (p0
+  solves, in blocks) and every eigenvalue is computed. Where p0 is too large for that, the
+  result says how far it is complete (``Spectrum.complete``, ``radius``, a warning).
 * ``arpack`` (shift sigma != 0): ARPACK on (K_c - sigma M)^-1 M, with the rank-p0 matrix
   M = E_t gamma R_n (slipping tangential rows <- gamma * normal reaction rows). Its
   eigenvalues are theta = 1/(alpha - sigma): the alphas nearest sigma come first.
@@ -20,13 +22,13 @@ Three solvers, which agree to round-off:
   of the dense pencil B x = (1/alpha) S_uu x, u = slipping tangential + free contact DOFs,
   B = gamma * (slipping normal rows of S) on the slipping tangential rows: S_uu is SPD, so
   this is the p0 x p0 matrix T = gamma S_nu S_uu^-1 E (Cholesky, then dense eig). S comes
-  from the linear-solver backend (:func:`critfric.linsolve.schur`): PARDISO returns it from
-  the factorization itself (all eigenvalues at about the cost of one factorization); SciPy
-  factors the interior block and solves once per contact DOF.
+  from the factorization itself on both backends (:func:`critfric.solvers.backends.schur`):
+  PARDISO's Schur option, or SuperLU with the contact DOFs ordered last. Every eigenvalue at
+  about the cost of one factorization.
 
-``backend`` ("auto", "scipy", "pardiso"; :mod:`critfric.linsolve`) picks the sparse solver.
-Method "auto": dense when K is small or the backend gives S from its factorization (and
-p <= SCHUR_MAX_CONTACT), else ARPACK.
+``backend`` ("auto", "scipy", "pardiso"; :mod:`critfric.solvers.backends`) picks the sparse
+solver. Method "auto": dense whenever p <= SCHUR_MAX_CONTACT (and no shift), on every
+install, so that both give the same complete spectrum; ARPACK beyond that.
 
 Criteria (stated once, used everywhere):
 
@@ -51,16 +53,13 @@ from threadpoolctl import threadpool_limits
 from ..errors import SolverError
 from ..fem.contact import FREE, SLIP, STUCK, ContactSystem
 from .backends import factorize, resolve_backend, schur
-from .ordering import dof_order, mesh_rank
+from .ordering import fill_order
 
 INFINITE_TOL = 1e-6
 RESIDUAL_TOL = 1e-6
-AUTO_DENSE_DOFS = 5000  # method "auto": dense up to this many free DOFs
 EXPLICIT_T_MAX = 3000  # widest ARPACK fallback: form T explicitly up to this p0
 WIDEN = 4  # ARPACK's second try asks for WIDEN times more eigenvalues
 SCHUR_MAX_CONTACT = 4000  # dense Schur path: at most this many contact nodes
-FAST_SCHUR = ("pardiso",)  # backends whose factorization returns S itself
-ND_MIN_DOFS = 20000  # scipy backend: nested-dissection ordering from this many DOFs on
 START_SEED = 20030328  # fixed ARPACK start vector: identical runs give identical results
 
 
@@ -103,7 +102,9 @@ class Spectrum:
     applications: int = 0  # ARPACK operator applications (linear solves)
     warnings: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)  # how the search went, for the log
-    backend: str = "scipy"  # linear-solver backend used (critfric.linsolve)
+    backend: str = "scipy"  # linear-solver backend used (critfric.solvers.backends)
+    complete: bool = True  # every eigenvalue found (else only those within `radius`)
+    radius: float = float("inf")
 
     @property
     def complex_count(self) -> int:
@@ -215,13 +216,8 @@ class _Reduced(_Problem):
 
 
 def _fill_order(system: ContactSystem, dofs: np.ndarray, backend: str):
-    """Nested-dissection order of the free DOFs ``dofs`` (node = DOF // 2) for the scipy
-    backend on large order-1 meshes; None otherwise (the backend orders by itself). On P2/Q2
-    meshes its separators are two node layers thick: no faster than minimum degree, and
-    larger (measured at 80 k-260 k DOFs)."""
-    if backend != "scipy" or len(dofs) < ND_MIN_DOFS or system.mesh.element not in ("P1", "Q1"):
-        return None
-    return dof_order(system.free[dofs] // 2, mesh_rank(system.mesh))
+    """The fill-reducing order SciPy's SuperLU is given (PARDISO orders by itself)."""
+    return fill_order(system, dofs) if backend == "scipy" else None
 
 
 def solve_dense(K, system: ContactSystem, state: ContactState, *, count: int,
@@ -280,6 +276,8 @@ def solve_arpack(K, system: ContactSystem, state: ContactState, *, count: int, s
         n, apply = red.Kc.shape[0], red.shifted
     k0 = max(2, 2 * count)
     vecs = beta = None
+    radius = np.inf  # every eigenvalue with |alpha - shift| < radius is found
+    kept = None  # the widest converged ARPACK result, used if T is too large to form
     if n >= 4:
         op = spla.LinearOperator((n, n), matvec=apply, dtype=np.float64)
         v0 = np.random.default_rng(START_SEED).standard_normal(n)
@@ -292,18 +290,25 @@ def solve_arpack(K, system: ContactSystem, state: ContactState, *, count: int, s
                 theta, vecs, converged = exc.eigenvalues, exc.eigenvectors, False
             beta = theta if shift == 0.0 else theta / (1.0 + shift * theta)
             alpha, real, _, _ = _classify(beta, real_tol)
-            found = np.count_nonzero(real & (alpha.real > 0))
-            if converged and found >= count:
-                break
-            what = "did not converge" if not converged else f"found {found} of {count} real " \
-                "positive eigenvalue(s)"
+            pos = np.count_nonzero(real & (alpha.real > 0))
+            neg = np.count_nonzero(real & (alpha.real < 0))
+            if converged:
+                kept = (beta, vecs, 1.0 / np.min(np.abs(theta)))
+            if converged and pos >= count and neg >= count:
+                break  # both families complete up to the count asked
+            what = "did not converge" if not converged else (
+                f"found {pos} positive and {neg} negative real eigenvalue(s), {count} of each "
+                "wanted,")
             notes.append(f"ARPACK {what} among the {k} eigenvalues nearest the shift")
             beta = None
-    if beta is None:  # widest search: every eigenvalue of T, formed explicitly
-        if p0 > EXPLICIT_T_MAX:
-            raise SolverError(f"ARPACK did not find {count} real positive eigenvalue(s) and "
-                              f"p0 = {p0} is too many to form T; try a larger [solve] tol, a "
-                              "smaller count, method = 'dense' or a shift near the value sought")
+    if beta is None and p0 > EXPLICIT_T_MAX:  # T too large: keep what ARPACK proved
+        if kept is None:
+            raise SolverError(f"ARPACK did not converge and p0 = {p0} is too many to form T; "
+                              "try a larger [solve] tol, method = 'dense' or a shift near the "
+                              "value sought")
+        beta, vecs, radius = kept
+        method = "arpack" if shift == 0.0 else "arpack-shift"
+    elif beta is None:  # widest search: every eigenvalue of T, formed explicitly
         if shift != 0.0:
             red.factor = factorize(red.Kc, symmetric=True, backend=backend,
                                    order=red.order(backend))
@@ -325,6 +330,13 @@ def solve_arpack(K, system: ContactSystem, state: ContactState, *, count: int, s
     spec = _finish(red, alpha, real, index, phi_of, count, method, n_inf, red.applications)
     spec.notes[:0] = notes
     spec.backend = red.factor.backend
+    if np.isfinite(radius):
+        where = f"|alpha - {shift:g}|" if shift else "|alpha|"
+        spec.complete, spec.radius = False, float(radius)
+        spec.warnings.append(
+            f"ARPACK's search is complete only for {where} < {radius:.6g}: a family with "
+            f"fewer than {count} coefficient(s) listed may have more beyond; use method = "
+            "'dense' to get every eigenvalue")
     return spec
 
 
@@ -372,10 +384,9 @@ def solve(K, system: ContactSystem, state: ContactState | None = None, *, method
     """Critical friction coefficients of a contact state (default: all nodes slipping)."""
     state = state or ContactState.all_slipping(system.n_contact, gamma)
     backend = resolve_backend(backend)
-    if method == "auto":
-        small = K.shape[0] <= AUTO_DENSE_DOFS or state.n_slip < 4
-        fast = backend in FAST_SCHUR and system.n_contact <= SCHUR_MAX_CONTACT and shift == 0.0
-        method = "dense" if (small or fast) else "arpack"
+    if method == "auto":  # every eigenvalue whenever the Schur complement fits
+        dense = system.n_contact <= SCHUR_MAX_CONTACT and shift == 0.0
+        method = "dense" if dense or state.n_slip < 4 else "arpack"
     if method == "dense":
         return solve_dense(K, system, state, count=count, real_tol=real_tol, backend=backend)
     if method == "arpack":

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import scipy.linalg as la
 import scipy.sparse as sp
-from helpers import square_case
+from helpers import CASES, square_case
 from typer.testing import CliRunner
 
 import critfric
@@ -148,10 +148,18 @@ def test_auto_backend_is_named_in_the_result_and_the_file(tmp_path):
     assert critfric.read_summary(path)["backend"] == r.backend
 
 
-def test_auto_picks_the_schur_path_when_the_backend_gives_it(monkeypatch):
-    monkeypatch.setattr(eigen, "AUTO_DENSE_DOFS", 10)
-    r = critfric.solve_case(loads_case(square_case(size=0.1)))
-    assert r.solver == ("dense" if r.backend in eigen.FAST_SCHUR else "arpack")
+@pytest.mark.parametrize("backend", backends())
+def test_auto_takes_every_eigenvalue_on_every_backend(backend, monkeypatch):
+    """One spectrum on every install: the Schur path, whatever the backend; ARPACK only
+    beyond SCHUR_MAX_CONTACT contact nodes, and then it says how complete it is."""
+    case = loads_case(square_case(size=0.1, extra=f'backend = "{backend}"\ncount = 2'))
+    r = critfric.solve_case(case)
+    assert r.solver == "dense" and r.backend == backend and r.complete
+    monkeypatch.setattr(eigen, "SCHUR_MAX_CONTACT", 4)
+    a = critfric.solve_case(case)
+    assert a.solver.startswith("arpack") and a.complete == (a.solver == "arpack+explicit")
+    np.testing.assert_allclose(a.positive[:2], r.positive[:2], rtol=1e-9)
+    np.testing.assert_allclose(a.negative[:2], r.negative[:2], rtol=1e-9)
 
 
 def test_backend_names_agree_between_schema_and_solvers():
@@ -196,10 +204,26 @@ def test_scipy_paths_with_nested_dissection_agree(element, monkeypatch):
     state = mixed_state(system.n_contact)
     ref = [eigen.solve(K, system, state, method=m, count=1, backend="scipy")
            for m in ("dense", "arpack")]
-    monkeypatch.setattr(eigen, "ND_MIN_DOFS", 0)
-    assert eigen._fill_order(system, np.arange(K.shape[0]), "scipy") is not None
+    monkeypatch.setattr(ordering, "ND_MIN_DOFS", 0)
+    rank = ordering.mesh_rank(system.mesh)
+    np.testing.assert_array_equal(ordering.fill_order(system),
+                                  ordering.dof_order(system.free // 2, rank))
     got = [eigen.solve(K, system, state, method=m, count=1, backend="scipy")
            for m in ("dense", "arpack")]
     for a, b in zip(got, ref):
         np.testing.assert_allclose(a.positive[:1], b.positive[:1], rtol=1e-10)
         np.testing.assert_allclose(a.modes[0].phi, b.modes[0].phi, atol=1e-9)
+
+
+def test_scipy_install_finds_the_inclined_body_negative_family():
+    """Without MKL the default path is the same Schur complement + dense pencil as with it:
+    the shipped inclined body's negative coefficient (-5.2301, found by PARDISO and the dense
+    method) is not dropped, and ARPACK, now widened until both families are found, agrees."""
+    case = critfric.load_case(CASES / "inclined_body.toml")
+    r = critfric.solve_case(case, overrides={"solve.backend": "scipy"})
+    assert r.solver == "dense" and r.backend == "scipy" and r.complete
+    assert r.negative[0] == pytest.approx(-5.2301070, rel=1e-6)
+    assert r.positive[0] == pytest.approx(0.58534076, rel=1e-6)
+    a = critfric.solve_case(case, overrides={"solve.backend": "scipy", "solve.method": "arpack"})
+    np.testing.assert_allclose([a.positive[0], a.negative[0]], [r.positive[0], r.negative[0]],
+                               rtol=1e-9)
