@@ -6,13 +6,18 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DEMO   := demo
 
-.PHONY: all venv demo test fuzz clean
+.PHONY: all venv demo test fuzz shell clean
 
 all: test
 
 $(STAMP): pyproject.toml
 	@bash scripts/system-deps.sh
-	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' 2>/dev/null || { \
+	  echo "critfric set-up: Python 3.11 or newer is needed as '$(PYTHON)'; install it or run" \
+	       "make PYTHON=/path/to/python3.11" >&2; exit 1; }
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV) 2>/dev/null || { rm -rf $(VENV); \
+	  echo "critfric set-up: '$(PYTHON) -m venv' does not work here; install the venv module" \
+	       "(Debian/Ubuntu: sudo apt-get install python3-venv) and run make again" >&2; exit 1; }
 	$(BIN)/python -m pip install -q --disable-pip-version-check -e '.[test,fast]' \
 	  || $(BIN)/python -m pip install -q --disable-pip-version-check -e '.[test]'
 	@touch $(STAMP)
@@ -30,6 +35,11 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# a shell with the virtual environment active (critfric on PATH); `exit` leaves it
+shell: $(STAMP)
+	@echo "critfric is on PATH in this shell; 'exit' leaves it" >&2
+	@. $(BIN)/activate && exec $${SHELL:-/bin/sh} -i
 
 # property-based fuzzing of the case loader and the CLI: the test suite's examples, x SCALE
 fuzz: $(STAMP)
