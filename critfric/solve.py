@@ -34,6 +34,16 @@ class Prepared:
     mesh: Mesh
     system: ContactSystem
     seconds: dict[str, float]
+    made_from: dict = field(default_factory=dict)  # the case sections that made the mesh
+
+    def check_case(self, case: Case) -> None:
+        """Refuse a case whose geometry, mesh or boundary differ from the ones this was
+        prepared from (its result would describe a mesh that was not solved)."""
+        for key, value in _mesh_inputs(case).items():
+            if key in self.made_from and self.made_from[key] != value:
+                raise CaseError(f"is {value!r} in this case but {self.made_from[key]!r} in the "
+                                "prepared mesh; allowed: the prepared values (or prepare() "
+                                "the case again)", file=case.source, key=key)
 
 
 @dataclass
@@ -168,11 +178,20 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False)
     system = contact_system(mesh, K_lam, K_G, contact=case.boundary["contact"],
                             dirichlet=case.boundary["dirichlet"], source=case.source)
     t3 = time.perf_counter()
-    return Prepared(mesh, system, {"mesh": t1 - t0, "assembly": t2 - t1, "contact": t3 - t2})
+    return Prepared(mesh, system, {"mesh": t1 - t0, "assembly": t2 - t1, "contact": t3 - t2},
+                    made_from=_mesh_inputs(case))
+
+
+def _mesh_inputs(case: Case) -> dict:
+    """Every case value that prepare() depends on, by dotted key."""
+    return {f"{section}.{k}": v for section in ("geometry", "mesh", "boundary")
+            for k, v in getattr(case, section).items()}
 
 
 def solve_prepared(prep: Prepared, case: Case) -> Result:
-    """Solve the eigenproblem of a prepared case at the case's Poisson ratio."""
+    """Solve the eigenproblem of a prepared case at the case's Poisson ratio (and [solve],
+    [contact]); its geometry, mesh and boundary must be those ``prep`` was made from."""
+    prep.check_case(case)
     t0 = time.perf_counter()
     E, nu = case.material["E"], case.material["nu"]
     lam, G = lame(E, nu)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from contextlib import contextmanager
 
@@ -87,7 +88,15 @@ def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = F
         ends = [int(np.argmin(np.linalg.norm(poly.vertices - p, axis=1))) for p in (start, end)]
         run_length = float(np.linalg.norm(end - start))
     n_refine = 0 if structured else _refinements(poly, h, element)
-    h0 = h * 2**n_refine
+    # gmsh meshes the body scaled to unit extent: its tolerances are absolute, so the mesh
+    # (and every coefficient) would otherwise depend on the length unit
+    # (canonical: rounded to 2^-40 and 12 digits, so that one body in two units gives the
+    # same numbers to gmsh, not numbers one ulp apart that its smoothing would amplify)
+    unit = float(np.ptp(poly.vertices, axis=0).max())
+    poly = Polygon(np.round(poly.vertices / unit * 2.0**40) / 2.0**40, poly.edge_names)
+    h, h0 = _canonical(h / unit), _canonical(h * 2**n_refine / unit)
+    if ends is not None:
+        run_length = _canonical(run_length / unit)
     with _gmsh_session():
         try:
             _build_geometry(poly, h0)
@@ -112,12 +121,18 @@ def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = F
                 gmsh.option.setNumber("Mesh.SecondOrderLinear", 1)
                 gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 0)
                 gmsh.model.mesh.setOrder(get_element(element).order)
-            return _extract(element)
+            mesh = _extract(element)
+            return dataclasses.replace(mesh, points=mesh.points * unit)
         except CritfricError:
             raise
         except Exception as exc:  # gmsh reports failures as bare Exceptions
             raise SolverError(f"gmsh failed to mesh the polygon: {exc}; try another mesh size "
                               "or element") from exc
+
+
+def _canonical(x: float) -> float:
+    """``x`` rounded to 12 significant digits."""
+    return float(f"{x:.12g}")
 
 
 def _refinements(poly: Polygon, h: float, element: str) -> int:

@@ -1,0 +1,46 @@
+"""The pipeline's face: prepare / solve_prepared / solve_case."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from helpers import square_case
+
+import critfric
+from critfric import CaseError, loads_case
+
+
+def test_solve_prepared_refuses_a_mesh_it_was_not_prepared_for():
+    case = loads_case(square_case(size=0.25))
+    prepared = critfric.prepare(case)
+    for over in ({"mesh.element": "P2"}, {"mesh.size": 0.1}):
+        with pytest.raises(CaseError, match="prepared") as err:
+            critfric.solve_prepared(prepared, case.with_overrides(over))
+        assert err.value.key == next(iter(over))
+    other = critfric.solve_prepared(prepared, case.with_overrides({"material.nu": 0.2}))
+    direct = critfric.solve_case(case.with_overrides({"material.nu": 0.2}))
+    assert other.element == direct.element == "P1" and other.size == direct.size == 0.25
+    np.testing.assert_allclose(other.positive, direct.positive, rtol=1e-12)
+
+
+POLYGON = ('[geometry]\nshape = "polygon"\nvertices = {v}\nedge_names = ["bottom", "right", '
+           '"top", "left"]\n[mesh]\nsize = {h!r}\n[solve]\ncount = 2\n')
+
+
+@pytest.mark.parametrize("scale", [1e-12, 1e-3, 1e6, 1e12])
+def test_coefficients_do_not_depend_on_the_length_unit(scale):
+    """The same body and relative mesh size in another length unit: the same mesh up to the
+    unit, the same coefficients (gmsh meshes the body scaled to unit extent)."""
+    quad = np.array([[0.0, 0.0], [1.0, 0.0], [1.3, 0.9], [0.2, 1.1]])
+    ref = critfric.solve_case(loads_case(POLYGON.format(v=quad.tolist(), h=0.1)))
+    got = critfric.solve_case(loads_case(POLYGON.format(v=(scale * quad).tolist(),
+                                                        h=0.1 * scale)))
+    assert got.n_dofs == ref.n_dofs
+    def rows(points):  # the nodes, whatever their numbering
+        return points[np.lexsort(np.round(points, 9).T[::-1])]
+
+    np.testing.assert_allclose(rows(got.mesh.points / scale), rows(ref.mesh.points),
+                               rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(got.positive[:2], ref.positive[:2], rtol=1e-10)
+    np.testing.assert_allclose(got.negative[:2], ref.negative[:2], rtol=1e-10)
+    assert got.h == pytest.approx(scale * ref.h, rel=1e-12)
