@@ -4,22 +4,22 @@
   quadrangles form the body (only those of the physical surfaces named in ``[geometry]
   domain`` if given; second-order cells give their corners); every physical curve is a
   boundary edge group, by name (or by number if unnamed).
-* ``.geo``: a gmsh script meshed by gmsh in-process. The gmsh language can run programs and
-  read or write files (``GEO_HAZARDS``); a script that mentions any such statement is refused
-  unless it is trusted (``--trust-geo``). The check looks at every word of the file, comments
-  and strings included: it may refuse a harmless script, never the reverse.
+* ``.geo``: a gmsh script meshed by gmsh. The gmsh language can run programs and read or
+  write files: a script is refused unless every statement is on the allow-list of geometry
+  and meshing statements (:mod:`.geoscript`), or it is trusted (``--trust-geo``).
+
+Both are read in a limited child process (:mod:`.sandbox`), from a private copy of the file's
+bytes: the same bytes that were checked.
 
 Both give first-order cells; P2/Q2 midpoints are then added on straight edges
-(:func:`critfric.mesh.inline_mesh`, which also checks the cells and the boundary edges).
+(:func:`critfric.meshing.mesh.inline_mesh`, which also checks the cells and the boundary edges).
 """
 
 from __future__ import annotations
 
-import bisect
 import contextlib
 import io
 import math
-import re
 import warnings
 from pathlib import Path
 from typing import Callable
@@ -29,47 +29,14 @@ import numpy as np
 from ..errors import CaseError, SolverError
 from ..fem.mesh import Mesh
 from ..guards import Footprint
+from .geoscript import refusals
 from .mesh import _gmsh_session, inline_mesh
+from .sandbox import read_input, run_in_child
 
-_RUNS = "runs a shell command"
-_READS = "reads another file (a .py file would be run)"
-#: words of the gmsh .geo language that reach outside the mesh, and what they do
-GEO_HAZARDS = {
-    "SystemCall": _RUNS, "NonBlockingSystemCall": _RUNS, "System": _RUNS,
-    "OnelabRun": "runs an external program (ONELAB client)",
-    "Solver": "configures an external solver program",
-    "Plugin": "runs a gmsh plugin",
-    "Include": "reads and runs another script",
-    "Merge": _READS, "MergeWithBoundingBox": _READS,
-    "ShapeFromFile": "reads a CAD file", "ListFromFile": "reads another file",
-    "Save": "writes a file", "Print": "writes a file", "CreateDir": "creates a directory",
-    "SendToServer": "sends data to another program",
-    "StringToName": "makes a command name from a string (it can hide any of these)",
-    "S2N": "makes a command name from a string (it can hide any of these)",
-    "Exit": "ends the program running it (critfric itself)",
-    "Sleep": "pauses the program running it",
-}
-# gmsh's tokens: numbers first (flex longest match), then names, then any single character
-_TOKEN = re.compile(r"(?P<num>\d+\.\d*(?:[Ee][-+]?\d+)?|\d*\.\d+(?:[Ee][-+]?\d+)?"
-                    r"|\d+[Ee][-+]?\d+|\d+)|(?P<name>[A-Za-z_][A-Za-z0-9_]*)|.", re.S)
+ENTRY = "critfric.meshing.gmshfile:child_mesh"  # what the sandboxed child runs
+
 _TRI, _QUAD = {"triangle", "triangle6"}, {"quad", "quad8", "quad9"}
 _LINES = {"line", "line3"}
-
-
-def geo_hazards(text: str) -> list[tuple[int, str, str]]:
-    """(line, word, what it does) for every statement of a .geo script that reaches outside."""
-    newlines = [m.start() for m in re.finditer("\n", text)]
-    found = []
-    for m in _TOKEN.finditer(text):
-        word = m.group("name")
-        if word is None:
-            continue
-        why = GEO_HAZARDS.get(word)
-        if word == "Printf" and ">" in text[m.end():]:  # Printf(...) > "file", even with
-            why = "may write a file (Printf ... > file)"  # comments in between
-        if why:
-            found.append((bisect.bisect_left(newlines, m.start()) + 1, word, why))
-    return found
 
 
 def _read_text(path: Path) -> str:
@@ -84,24 +51,25 @@ def _read_text(path: Path) -> str:
 
 
 def check_geo(path: Path, text: str) -> None:
-    """Refuse a .geo script that can run programs or touch other files."""
-    hazards = geo_hazards(text)
-    if hazards:
-        shown = "; ".join(f"line {line}: {word} ({why})" for line, word, why in hazards[:5])
-        more = f" and {len(hazards) - 5} more" if len(hazards) > 5 else ""
-        raise CaseError(f"refused: this gmsh script can reach outside the mesh: {shown}{more}. "
-                        "critfric meshes only self-contained scripts; remove these statements "
-                        "or, if you trust the script, pass --trust-geo", file=str(path),
-                        key="geometry.file")
+    """Refuse a .geo script with anything outside the allow-list of geometry and meshing
+    statements (:mod:`critfric.meshing.geoscript`)."""
+    found = refusals(text)
+    if found:
+        shown = "; ".join(f"line {line}: {word} ({why})" for line, word, why in found[:5])
+        more = f" and {len(found) - 5} more" if len(found) > 5 else ""
+        raise CaseError(f"refused: this gmsh script says what critfric does not allow in an "
+                        f"untrusted script: {shown}{more}. critfric meshes only scripts made of "
+                        "geometry and meshing statements; remove these or, if you trust the "
+                        "script, pass --trust-geo", file=str(path), key="geometry.file")
 
 
 # ------------------------------------------------------------------------------ first order
-def _build(points, cells, edges: dict, element: str, path: Path) -> Mesh:
+def _build(points, cells, edges: dict, element: str, path: Path, name: str) -> Mesh:
     """A Mesh from first-order cells (n, 3 or 4) of any node numbering and edge node pairs."""
     family = ("P1", "P2") if cells.shape[1] == 3 else ("Q1", "Q2")
     kind = "triangles" if cells.shape[1] == 3 else "quadrangles"
     if element not in family:
-        raise CaseError(f"got {element!r} for a mesh of {kind} ({path.name}); allowed: "
+        raise CaseError(f"got {element!r} for a mesh of {kind} ({name}); allowed: "
                         + " or ".join(family), file=str(path), key="mesh.element")
     points = np.asarray(points, dtype=np.float64)
     scale = float(np.ptp(points[:, :2], axis=0).max()) if len(points) else 0.0
@@ -126,10 +94,13 @@ def _build(points, cells, edges: dict, element: str, path: Path) -> Mesh:
         raise CaseError(f"{what}: {exc.detail}", file=str(path), key="geometry.file") from None
 
 
-def read_msh(path: Path, *, element: str, domain: list[str] | None = None) -> Mesh:
-    """The mesh of a gmsh .msh file (formats 2.2 and 4.1, ASCII or binary)."""
+def read_msh(path: Path, *, element: str, domain: list[str] | None = None,
+             shown: str | None = None) -> Mesh:
+    """The mesh of a gmsh .msh file (formats 2.2 and 4.1, ASCII or binary); ``shown``: the
+    file's name in messages."""
     import meshio
 
+    name = shown or path.name
     if not path.is_file():
         _read_text(path)  # raises the right message
     try:
@@ -137,6 +108,11 @@ def read_msh(path: Path, *, element: str, domain: list[str] | None = None) -> Me
                 contextlib.redirect_stdout(io.StringIO()):
             warnings.simplefilter("ignore")
             m = meshio.read(path, file_format="gmsh")
+    except MemoryError:
+        raise CaseError("reading this mesh needs far more memory than its size justifies (it "
+                        "declares huge node counts or tags); allowed: a gmsh .msh file whose "
+                        "node tags and counts match its contents", file=str(path),
+                        key="geometry.file") from None
     except Exception as exc:  # meshio reports malformed files with many exception types
         raise CaseError(f"cannot read this gmsh mesh ({type(exc).__name__}: {exc}); allowed: a "
                         "gmsh .msh file, format 2.2 or 4.1", file=str(path),
@@ -164,7 +140,7 @@ def read_msh(path: Path, *, element: str, domain: list[str] | None = None) -> Me
         surfaces = {n: t for n, (t, d) in names.items() if d == 2}
         missing = [n for n in domain if n not in surfaces]
         if missing:
-            raise CaseError(f"no physical surface {missing[0]!r} in {path.name}; allowed: "
+            raise CaseError(f"no physical surface {missing[0]!r} in {name}; allowed: "
                             + (", ".join(sorted(surfaces)) or "none defined"), file=str(path),
                             key="geometry.domain")
         picked = [(i, np.any([rows(i, n, surfaces[n]) for n in domain], axis=0))
@@ -194,11 +170,11 @@ def read_msh(path: Path, *, element: str, domain: list[str] | None = None) -> Me
         pairs = np.concatenate(parts) if parts else np.zeros((0, 2), dtype=np.int64)
         if len(pairs):
             edges[name] = pairs.astype(np.int64)
-    return _build(m.points, cells, edges, element, path)
+    return _build(m.points, cells, edges, element, path, name)
 
 
 # ------------------------------------------------------------------------------ .geo scripts
-def _surfaces(domain: list[str] | None, path: Path) -> list[int]:
+def _surfaces(domain: list[str] | None, path: Path, name: str) -> list[int]:
     import gmsh
 
     if not domain:
@@ -207,7 +183,7 @@ def _surfaces(domain: list[str] | None, path: Path) -> list[int]:
               for _, t in gmsh.model.getPhysicalGroups(2)}
     missing = [n for n in domain if n not in groups]
     if missing:
-        raise CaseError(f"no physical surface {missing[0]!r} in {path.name}; allowed: "
+        raise CaseError(f"no physical surface {missing[0]!r} in {name}; allowed: "
                         + (", ".join(sorted(groups)) or "none defined"), file=str(path),
                         key="geometry.domain")
     return sorted({int(e) for n in domain
@@ -274,7 +250,8 @@ def _extract(surfaces: list[int]):
 
 def mesh_geo(path: Path, *, element: str, size: float | None = None,
              domain: list[str] | None = None, trust: bool = False,
-             check: Callable[[Footprint, float], None] | None = None) -> Mesh:
+             check: Callable[[Footprint, float], None] | None = None,
+             shown: str | None = None) -> Mesh:
     """Mesh a gmsh .geo script (refused if it can reach outside, unless ``trust``).
 
     size  : upper bound on the element size (``Mesh.MeshSizeMax``); the script's own sizes
@@ -284,6 +261,7 @@ def mesh_geo(path: Path, *, element: str, size: float | None = None,
     """
     import gmsh
 
+    name = shown or path.name
     text = _read_text(path)
     if not trust:
         check_geo(path, text)
@@ -293,7 +271,7 @@ def mesh_geo(path: Path, *, element: str, size: float | None = None,
         except Exception as exc:  # gmsh reports script errors as bare Exceptions
             raise CaseError(f"gmsh cannot read this script: {exc}", file=str(path),
                             key="geometry.file") from None
-        surfaces = _surfaces(domain, path)
+        surfaces = _surfaces(domain, path, name)
         if not surfaces:
             raise CaseError("the script defines no surface; allowed: a 2D geometry with a "
                             "plane surface", file=str(path), key="geometry.file")
@@ -310,17 +288,17 @@ def mesh_geo(path: Path, *, element: str, size: float | None = None,
         try:
             gmsh.model.mesh.generate(2)
         except Exception as exc:
-            raise SolverError(f"gmsh failed to mesh {path}: {exc}; try another mesh size")
+            raise SolverError(f"gmsh failed to mesh {name}: {exc}; try another mesh size")
         points, cells, edges = _extract(surfaces)
     if len(cells) == 0:
         raise CaseError("gmsh made no cells from this script", file=str(path),
                         key="geometry.file")
-    return _build(points, cells, edges, element, path)
+    return _build(points, cells, edges, element, path, name)
 
 
 def check_file(case, *, trust_geo: bool = False) -> Path:
     """The geometry file of a case, refused before any meshing if missing or, for a .geo
-    script that can reach outside, unless ``trust_geo``."""
+    script outside the allow-list, unless ``trust_geo``."""
     from ..case.schema import geometry_file
 
     path = geometry_file(case)
@@ -328,30 +306,51 @@ def check_file(case, *, trust_geo: bool = False) -> Path:
         raise CaseError(f"got {case.geometry['file']!r}: no such file ({path}); allowed: an "
                         "existing gmsh .msh or .geo file", file=case.source, key="geometry.file")
     if path.suffix.lower() == ".geo" and not trust_geo:
-        check_geo(path, _read_text(path))
+        check_geo(path, _decode(read_input(path), path))
     return path
 
 
+def _decode(data: bytes, path: Path) -> str:
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise CaseError(f"is not UTF-8 text ({exc.reason} at byte {exc.start}); allowed: a "
+                        "gmsh .geo script in UTF-8", file=str(path), key="geometry.file") from None
+
+
 def file_mesh(case, *, max_dofs: int | None = None, trust_geo: bool = False) -> Mesh:
-    """The mesh of a ``shape = "file"`` case, after the resource guard."""
+    """The mesh of a ``shape = "file"`` case: the file's bytes checked (a .geo against the
+    allow-list unless ``trust_geo``), then read or meshed in a limited child process
+    (:mod:`critfric.meshing.sandbox`), then the resource guard on the real mesh."""
     from ..guards import check_dofs
 
     path = check_file(case, trust_geo=trust_geo)
-    element, domain = case.mesh["element"], case.geometry["domain"]
-    if path.suffix.lower() == ".msh":
-        mesh = read_msh(path, element=element, domain=domain)
-        check_dofs(2.0 * mesh.n_nodes, element=element, what=f"the mesh {path.name}",
-                   source=case.source, key="geometry.file", max_dofs=max_dofs)
-        return mesh
-
-    def check(footprint: Footprint, h: float) -> None:
-        check_dofs(footprint.dofs(h, element), element=element,
-                   what=f"{path.name} at mesh size about {h:.3g}", source=case.source,
-                   footprint=footprint, max_dofs=max_dofs)
-
-    mesh = mesh_geo(path, element=element, size=case.mesh["size"], domain=domain,
-                    trust=trust_geo, check=check)
+    data = read_input(path)  # the bytes checked here are the bytes meshed
+    kind = path.suffix.lower().lstrip(".")
+    if kind == "geo" and not trust_geo:
+        check_geo(path, _decode(data, path))
+    element = case.mesh["element"]
+    job = {"kind": kind, "element": element, "size": case.mesh["size"],
+           "domain": case.geometry["domain"], "max_dofs": max_dofs, "trust": trust_geo}
+    mesh = run_in_child(path, data, job, entry=ENTRY, source=case.source)
     # the estimate misses size fields and transfinite counts: check the real mesh too
     check_dofs(2.0 * mesh.n_nodes, element=element, what=f"the mesh of {path.name}",
                source=case.source, key="geometry.file", max_dofs=max_dofs)
     return mesh
+
+
+def child_mesh(work: Path, job: dict) -> Mesh:
+    """In the sandboxed child: read or mesh ``work/job["input"]``."""
+    from ..guards import check_dofs
+
+    path, element, shown = work / job["input"], job["element"], job["shown"]
+    if job["kind"] == "msh":
+        return read_msh(path, element=element, domain=job["domain"], shown=shown)
+
+    def check(footprint: Footprint, h: float) -> None:
+        check_dofs(footprint.dofs(h, element), element=element,
+                   what=f"{shown} at mesh size about {h:.3g}", source=None,
+                   footprint=footprint, max_dofs=job["max_dofs"])
+
+    return mesh_geo(path, element=element, size=job["size"], domain=job["domain"],
+                    trust=job["trust"], check=check, shown=shown)

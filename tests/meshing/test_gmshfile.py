@@ -12,7 +12,7 @@ from helpers import SQUARE_GEO
 from critfric import loads_case, solve_case
 from critfric.errors import CaseError
 from critfric.meshing.geometry import rectangle
-from critfric.meshing.gmshfile import geo_hazards
+from critfric.meshing.geoscript import refusals
 from critfric.meshing.mesh import build_mesh
 
 
@@ -92,12 +92,14 @@ EndFor
 Transfinite Curve{1} = 11; Recombine Surface{1};
 If (lc > 0.05) Printf("coarse"); EndIf
 """
-    assert geo_hazards(text) == []
+    assert refusals(text) == []
 
 
-def test_hazards_are_found_anywhere_with_their_line():
-    text = 'a = 1e5;\nb = 1e5SystemCall "x";\n/* Include "y"; */\nPrintf("a") >> "f";\n'
-    assert [(line, word) for line, word, _ in geo_hazards(text)] == [
+def test_refusals_are_found_anywhere_with_their_line():
+    """Code is checked wherever it stands; a comment is not code (gmsh skips it too)."""
+    text = ('a = 1e5;\nb = 1e5SystemCall "x";\n/* Include "y"; */ Include "z";\n'
+            'Printf("a") >> "f";\n// SystemCall "harmless in a comment";\n')
+    assert [(line, word) for line, word, _ in refusals(text)] == [
         (2, "SystemCall"), (3, "Include"), (4, "Printf")]
 
 

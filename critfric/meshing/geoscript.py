@@ -1,0 +1,209 @@
+"""What a gmsh .geo script may say: an allow-list of geometry and meshing statements.
+
+A script is accepted (without ``--trust-geo``) only when every name in it is one of:
+
+* a statement or function of the geometry and meshing part of the gmsh language
+  (``STATEMENTS``, ``FUNCTIONS``), e.g. ``Point``, ``Line``, ``Plane Surface``, ``Physical
+  Curve``, ``Transfinite``, ``Field``, ``For``/``EndFor``, ``Sqrt``;
+* an option of ``Mesh.`` or ``Geometry.`` in ``OPTIONS``, or a mesh-size field of a type in
+  ``FIELD_TYPES`` with options in ``FIELD_OPTIONS``;
+* a variable the script assigns before it uses it (``lc = 0.1;``, ``For i In ...``).
+
+Anything else (``SystemCall``, ``Include``, ``Merge``, ``General.*`` options, ``Field`` types
+that run programs or read files, string-to-name conversions, ...) is refused with its line,
+whatever it is: gmsh keeps adding statements, and an unknown one is never assumed harmless.
+Comments are skipped and string literals are not read as names (they name physical groups);
+the check is one linear pass over the text. It is one of two walls: the script is also meshed
+in a limited child process (:mod:`critfric.meshing.sandbox`).
+"""
+
+from __future__ import annotations
+
+import bisect
+import re
+
+STATEMENTS = frozenset("""
+Point Line Circle Ellipse Spline BSpline Bezier Curve Loop Surface Plane Physical Transfinite
+Recombine Characteristic Length MeshSize Mesh Field Background Coherence Delete Compound
+Translate Rotate Symmetry Dilate Duplicata Extrude Layers Recombine Boundary CombinedBoundary
+For In EndFor If ElseIf Else EndIf Using Progression Bump Beta Left Right Alternate
+AlternateLeft AlternateRight Smoothing Reverse Reverse Rectangle Disk Circle BooleanUnion
+BooleanDifference BooleanIntersection BooleanFragments SetFactory Hide Show
+Geometry Color Macro Function Call Return Printf
+""".split())
+FUNCTIONS = frozenset("""
+Sqrt Sin Cos Tan Asin Acos Atan Atan2 Sinh Cosh Tanh Exp Log Log10 Fabs Abs Floor Ceil Round
+Fmod Modulo Hypot Rand Min Max Pi Sign Step
+newp newl news newll newc newreg newf newcl newsl newv newvl
+""".split())
+OPTIONS = {
+    "Mesh": frozenset("""
+CharacteristicLengthMax CharacteristicLengthMin CharacteristicLengthFactor
+CharacteristicLengthFromPoints CharacteristicLengthFromCurvature CharacteristicLengthExtendFromBoundary
+MeshSizeMax MeshSizeMin MeshSizeFactor MeshSizeFromPoints MeshSizeFromCurvature
+MeshSizeExtendFromBoundary MeshSizeFromParametricPoints Algorithm RecombineAll
+RecombinationAlgorithm Smoothing ElementOrder SecondOrderLinear SecondOrderIncomplete
+Optimize OptimizeNetgen OptimizeThreshold RandomFactor RandomSeed AngleToleranceFacetOverlap
+SubdivisionAlgorithm TransfiniteTri MinimumCirclePoints MinimumCurvePoints
+""".split()),
+    "Geometry": frozenset("""
+Tolerance ToleranceBoolean AutoCoherence OCCBooleanPreserveNumbering MatchMeshTolerance
+""".split()),
+}
+FIELD_TYPES = frozenset("""
+Distance Threshold MathEval MathEvalAniso Box Ball Cylinder Frustum Min Max Constant Restrict
+Param Gradient Mean Laplacian Curvature AttractorAnisoCurve BoundaryLayer
+""".split())
+FIELD_OPTIONS = frozenset("""
+PointsList CurvesList EdgesList SurfacesList FacesList NodesList NumPointsPerCurve Sampling
+InField FieldsList FieldX FieldY FieldZ SizeMin SizeMax DistMin DistMax LcMin LcMax Sigmoid
+StopAtDistMax F M11 M12 M13 M22 M23 M33 VIn VOut XMin XMax YMin YMax ZMin ZMax Thickness
+XCenter YCenter ZCenter XAxis YAxis ZAxis Radius InnerRadius R1 R2 R1_inner R2_inner Z1 Z2 X1
+X2 Y1 Y2 Value IncludeBoundary Kind Delta Size SizeFar Ratio Thickness hwall_n hfar
+IncludeVolumes
+""".split())
+
+_LEXER = re.compile(
+    r"(?P<comment>//[^\n]*|/\*.*?(?:\*/|\Z))"
+    r'|(?P<string>"(?:[^"\\\n]|\\.)*"?)'
+    r"|(?P<num>\d+\.\d*(?:[Ee][-+]?\d+)?|\d*\.\d+(?:[Ee][-+]?\d+)?|\d+[Ee][-+]?\d+|\d+)"
+    r"|(?P<name>[A-Za-z_][A-Za-z0-9_]*)"
+    r"|(?P<space>\s+)|(?P<other>.)", re.S)
+
+
+_RUNS = "runs a shell command"
+_READS = "reads another file (a .py file would be run)"
+#: what some refused names do (for the message; the refusal does not depend on this list)
+KNOWN = {
+    "SystemCall": _RUNS, "NonBlockingSystemCall": _RUNS, "System": _RUNS,
+    "OnelabRun": "runs an external program (ONELAB client)",
+    "Solver": "configures an external solver program", "Plugin": "runs a gmsh plugin",
+    "Include": "reads and runs another script", "Merge": _READS, "MergeWithBoundingBox": _READS,
+    "ShapeFromFile": "reads a CAD file", "ListFromFile": "reads another file",
+    "Save": "writes a file", "Print": "writes a file", "CreateDir": "creates a directory",
+    "SendToServer": "sends data to another program", "General": "sets gmsh's own options "
+    "(log files, terminal output, abort on error)",
+    "StringToName": "makes a command name from a string (it can hide any command)",
+    "S2N": "makes a command name from a string (it can hide any command)",
+    "Exit": "ends the program running it (critfric itself)", "Sleep": "pauses the program",
+}
+
+
+def _tokens(text: str):
+    """(kind, value, offset) of every token but comments and white space."""
+    for m in _LEXER.finditer(text):
+        kind = m.lastgroup
+        if kind not in ("comment", "space"):
+            yield kind, m.group(), m.start()
+
+
+def refusals(text: str) -> list[tuple[int, str, str]]:
+    """(line, name, why) for every name of a .geo script outside the allow-list."""
+    if text.startswith("\ufeff"):
+        text = text[1:]  # a UTF-8 byte-order mark is not a statement
+    newlines = [m.start() for m in re.finditer("\n", text)]
+    tokens = list(_tokens(text))
+    defined: set[str] = set()
+    found: list[tuple[int, str, str]] = []
+
+    def refuse(offset: int, word: str, why: str) -> None:
+        if offset not in seen:
+            seen.add(offset)
+            found.append((bisect.bisect_right(newlines, offset) + 1, word, why))
+
+    seen: set[int] = set()
+
+    for i, (kind, value, offset) in enumerate(tokens):
+        if kind == "other" and value in "$@\\`":
+            refuse(offset, value, "not part of the geometry language")
+        if kind != "name":
+            continue
+        before = tokens[i - 1][1] if i else ""
+        after = tokens[i + 1][1] if i + 1 < len(tokens) else ""
+        if before == ".":  # an option or field option: checked with its owner below
+            continue
+        if value in OPTIONS:
+            if after == ".":
+                option = tokens[i + 2][1] if i + 2 < len(tokens) else ""
+                if option not in OPTIONS[value]:
+                    refuse(offset, f"{value}.{option}", "an option outside the meshing "
+                           "options critfric allows")
+                continue
+            if value in STATEMENTS:  # "Geometry" / "Mesh" used as a statement word
+                continue
+        if value == "Field" and after == "[":
+            j = i + 2  # Field[expr] = Type;  or  Field[expr].Option = value;
+            depth = 1
+            while j < len(tokens) and depth:
+                depth += {"[": 1, "]": -1}.get(tokens[j][1], 0)
+                j += 1
+            nxt = tokens[j][1] if j < len(tokens) else ""
+            if nxt == "=" and j + 1 < len(tokens):
+                ftype = tokens[j + 1][1]
+                if tokens[j + 1][0] != "name" or ftype not in FIELD_TYPES:
+                    refuse(tokens[j + 1][2], ftype, "a mesh-size field type critfric does "
+                           "not allow (it may run a program or read a file)")
+            elif nxt == "." and j + 1 < len(tokens):
+                option = tokens[j + 1][1]
+                if option not in FIELD_OPTIONS:
+                    refuse(tokens[j + 1][2], option, "a field option critfric does not allow")
+            continue
+        if i >= 2 and tokens[i - 1][1] == "=" and tokens[i - 2][1] == "]" \
+                and value in FIELD_TYPES:
+            continue  # the type of a field, checked above
+        if value == "Printf" and _redirects(tokens, i):
+            refuse(offset, value, "writes a file (Printf ... > file)")
+            continue
+        if value in KNOWN and value not in defined:
+            refuse(offset, value, KNOWN[value])
+            continue
+        if value in STATEMENTS or value in FUNCTIONS or value in defined:
+            if before in ("Function", "Macro"):
+                defined.add(value)
+            continue
+        if before in ("Function", "Macro"):
+            defined.add(value)
+            continue
+        # a variable: defined by `name =`, `name[] =`, `name(...) =`, `name += ...`, `For name`
+        if after in ("=", "[", "(", "+", "-", "*", "/", "~") and _assigns(tokens, i) \
+                or before == "For":
+            defined.add(value)
+            continue
+        refuse(offset, value, "not a geometry or meshing statement critfric allows, nor a "
+               "variable assigned before")
+    return found
+
+
+def _redirects(tokens, i: int) -> bool:
+    """Whether the statement from tokens[i] to its ';' has a '>' (Printf(...) > "file")."""
+    for _, value, _ in tokens[i + 1:]:
+        if value == ";":
+            return False
+        if value == ">":
+            return True
+    return False
+
+
+def _assigns(tokens, i: int) -> bool:
+    """Whether tokens[i] (a name) starts an assignment: name = / name[...] = / name~{...} =
+    / name += ..."""
+    j = i + 1
+    while j + 1 < len(tokens) and tokens[j][1] == "~" and tokens[j + 1][1] == "{":
+        depth, j = 0, j + 1
+        while j < len(tokens):
+            depth += {"{": 1, "}": -1}.get(tokens[j][1], 0)
+            j += 1
+            if depth == 0:
+                break
+    if j < len(tokens) and tokens[j][1] in "[(":
+        close, depth = {"[": "]", "(": ")"}[tokens[j][1]], 0
+        while j < len(tokens):
+            depth += {tokens[i + 1][1]: 1, close: -1}.get(tokens[j][1], 0)
+            j += 1
+            if depth == 0:
+                break
+    if j < len(tokens) and tokens[j][1] in "+-*/" and j + 1 < len(tokens) \
+            and tokens[j + 1][1] == "=":
+        return True
+    return j < len(tokens) and tokens[j][1] == "=" and (
+        j + 1 >= len(tokens) or tokens[j + 1][1] != "=")

@@ -1,0 +1,199 @@
+"""User gmsh files are read and meshed in a limited child process.
+
+The parent copies the file's bytes (read once: what was checked is what is meshed) into a
+fresh private directory that holds nothing else (so gmsh finds no sidecar ``.opt`` file and
+no other file by a relative name), and runs this module there in a new Python process with
+
+* CPU time, address space and file size limits (``resource.setrlimit``) and a wall-clock
+  timeout: an endless loop, a recursive macro or a huge declared mesh ends as an error;
+* no standard input, standard output and error captured (gmsh's terminal output can never
+  reach critfric's ``--json``), an environment reduced to PATH and the private directory;
+* gmsh started without its option files, terminal output off.
+
+The child answers with ``mesh.npz`` (the Mesh arrays) or ``error.json`` (a CaseError or
+SolverError to raise again); anything else (a crash, ``sys.exit`` or ``abort`` in a library,
+a limit hit) becomes a clear error in the parent. The directory is removed afterwards.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import CaseError, CritfricError, SolverError
+from ..fem.elements import get_element
+from ..fem.mesh import Mesh
+
+CPU_SECONDS = 120  # CPU time a child may use to read or mesh one file
+WALL_SECONDS = 300  # and wall-clock time, start-up included
+MIN_ADDRESS_SPACE = 4 * 2**30  # a child may always map this much (Python, numpy, gmsh)
+MSH_BYTES_PER_BYTE = 64  # and, reading a .msh, this much more per byte of the file
+MAX_INPUT_BYTES = 1 << 30  # a gmsh file larger than this is refused unread
+OUTPUT_BYTES = 4 << 30  # the largest file a child may write (its mesh.npz)
+_CAPTURE = 4000  # characters of a failed child's stderr quoted in the message
+
+
+def run_in_child(path: Path, data: bytes, job: dict, *, entry: str,
+                 source: str | None) -> Mesh:
+    """The Mesh that ``entry`` ("module:function", called in the child with the private
+    directory and ``job``) makes of ``data``, the bytes of the user file ``path``."""
+    with tempfile.TemporaryDirectory(prefix="critfric-mesh-") as tmp:
+        work = Path(tmp)
+        os.chmod(work, 0o700)
+        name = "input" + path.suffix.lower()
+        (work / name).write_bytes(data)
+        (work / "job.json").write_text(json.dumps({**job, "input": name, "shown": path.name}))
+        env = {"PATH": os.defpath, "HOME": tmp, "TMPDIR": tmp, "OMP_NUM_THREADS": "1",
+               "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "LC_ALL": "C"}
+        code = ("import sys; sys.path.insert(0, sys.argv[1]); "
+                "from critfric.meshing.sandbox import child_main; child_main(sys.argv[2])")
+        package_root = str(Path(__file__).resolve().parents[2])
+        try:
+            proc = subprocess.run(
+                [sys.executable, "-I", "-c", code, package_root, entry], cwd=tmp, env=env,
+                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                timeout=WALL_SECONDS, preexec_fn=functools.partial(_limits, _space(job, data)),
+                check=False)
+        except subprocess.TimeoutExpired:
+            raise CaseError(f"reading or meshing this file took more than {WALL_SECONDS} s "
+                            "and was stopped (an endless loop in a .geo script?)",
+                            file=str(path), key="geometry.file") from None
+        error = work / "error.json"
+        if error.is_file():
+            raise _error_from(json.loads(error.read_text()), path, source)
+        result = work / "mesh.npz"
+        if proc.returncode != 0 or not result.is_file():
+            raise CaseError(_failure(proc), file=str(path), key="geometry.file")
+        return _mesh_from(result, path)
+
+
+def read_input(path: Path) -> bytes:
+    """The bytes of a user file, read once (so what is checked is what is meshed)."""
+    try:
+        size = path.stat().st_size
+        if size > MAX_INPUT_BYTES:
+            raise CaseError(f"is {size / 2**20:.0f} MB; allowed: gmsh files up to "
+                            f"{MAX_INPUT_BYTES >> 20} MB", file=str(path), key="geometry.file")
+        with open(path, "rb") as f:
+            return f.read(MAX_INPUT_BYTES + 1)
+    except FileNotFoundError:
+        raise CaseError("no such file; allowed: an existing gmsh .msh or .geo file",
+                        file=str(path), key="geometry.file") from None
+    except IsADirectoryError:
+        raise CaseError("is a directory; allowed: a gmsh .msh or .geo file", file=str(path),
+                        key="geometry.file") from None
+    except OSError as exc:
+        raise CaseError(f"cannot read this file ({exc.strerror})", file=str(path),
+                        key="geometry.file") from None
+
+
+def _space(job: dict, data: bytes) -> int:
+    """The address space a child may map: reading a .msh needs memory in proportion to the
+    file (a small file that declares a huge node count or sparse tags is stopped there);
+    meshing a .geo, what the resource guard allowed."""
+    from ..guards import available_memory
+
+    if job["kind"] == "msh":
+        return MIN_ADDRESS_SPACE + MSH_BYTES_PER_BYTE * len(data)
+    return max(int(available_memory()), MIN_ADDRESS_SPACE)
+
+
+def _limits(space: int) -> None:  # runs in the child, before Python starts
+    import resource
+
+    for limit, value in ((resource.RLIMIT_CPU, CPU_SECONDS), (resource.RLIMIT_AS, space),
+                         (resource.RLIMIT_FSIZE, OUTPUT_BYTES), (resource.RLIMIT_CORE, 0)):
+        soft, hard = resource.getrlimit(limit)
+        value = value if hard == resource.RLIM_INFINITY else min(value, hard)
+        resource.setrlimit(limit, (value, hard))
+    os.setsid()  # its own process group: a Ctrl-C reaches critfric, which ends it
+
+
+def _failure(proc: subprocess.CompletedProcess) -> str:
+    code = proc.returncode
+    if code < 0:
+        import signal
+
+        name = signal.Signals(-code).name if -code in signal.Signals._value2member_map_ else code
+        why = {"SIGXCPU": f"it used more than {CPU_SECONDS} s of CPU time",
+               "SIGKILL": f"it used more than {CPU_SECONDS} s of CPU time or was killed",
+               "SIGSEGV": "the reader crashed (out of memory, or a malformed file)",
+               "SIGABRT": "the reader aborted"}.get(str(name), f"it ended on signal {name}")
+    else:
+        why = f"the reader stopped with exit code {code}"
+    tail = proc.stderr.decode(errors="replace").strip()[-_CAPTURE:]
+    return (f"cannot read or mesh this file: {why}" + (f" ({tail.splitlines()[-1]})"
+                                                       if tail else ""))
+
+
+def _error_from(info: dict, path: Path, source: str | None) -> CritfricError:
+    kind, message, key = info.get("kind"), str(info.get("message")), info.get("key")
+    if kind == "solver":
+        return SolverError(message)
+    file = info.get("file")
+    return CaseError(message, file=str(path) if file == "input" else (file or source),
+                     key=key)
+
+
+def _mesh_from(result: Path, path: Path) -> Mesh:
+    """The child's Mesh arrays, checked before use."""
+    with np.load(result, allow_pickle=False) as z:
+        points, cells = z["points"], z["cells"]
+        element = str(z["element"])
+        names = [str(n) for n in z["edge_names"]]
+        edges = {n: z[f"edge_{i}"] for i, n in enumerate(names)}
+    spec = get_element(element)
+    ok = (points.ndim == 2 and points.shape[1] == 2 and points.dtype == np.float64
+          and np.all(np.isfinite(points)) and cells.ndim == 2 and cells.shape[1] == spec.n_local
+          and cells.dtype.kind == "i" and cells.size and cells.min() >= 0
+          and cells.max() < len(points)
+          and all(e.ndim == 2 and e.shape[1] == spec.facet_nodes and e.dtype.kind == "i"
+                  and (e.size == 0 or (e.min() >= 0 and e.max() < len(points)))
+                  for e in edges.values()))
+    if not ok:
+        raise SolverError(f"the mesh read from {path.name} came back malformed")
+    return Mesh(points, cells, element, edges)
+
+
+# ------------------------------------------------------------------------------- the child
+def child_main(entry: str) -> None:
+    """The child process (cwd: the private directory): ``entry`` makes the Mesh."""
+    import importlib
+
+    work = Path.cwd()
+    try:
+        job = json.loads((work / "job.json").read_text())
+        module, _, function = entry.partition(":")
+        mesh = getattr(importlib.import_module(module), function)(work, job)
+        names = sorted(mesh.edges)
+        np.savez(work / "mesh.npz", points=np.ascontiguousarray(mesh.points, dtype=np.float64),
+                 cells=mesh.cells.astype(np.int64), element=np.str_(mesh.element),
+                 edge_names=np.array(names, dtype=str),
+                 **{f"edge_{i}": mesh.edges[n].astype(np.int64) for i, n in enumerate(names)})
+    except CritfricError as exc:
+        _answer(work, {"kind": "case" if isinstance(exc, CaseError) else "solver",
+                       "message": getattr(exc, "detail", str(exc)),
+                       "key": getattr(exc, "key", None),
+                       "file": "input" if getattr(exc, "file", None) else None})
+    except MemoryError:
+        _answer(work, {"kind": "case", "key": "geometry.file", "file": "input",
+                       "message": "reading or meshing this file needs more memory than this "
+                                  "machine allows (a huge declared size?)"})
+    except SystemExit as exc:  # a library that calls sys.exit on a malformed file
+        _answer(work, {"kind": "case", "key": "geometry.file", "file": "input",
+                       "message": f"the file reader gave up (exit {exc.code}): a malformed "
+                                  "or unsupported gmsh file"})
+    except Exception as exc:  # a reader's own failure on a malformed file
+        _answer(work, {"kind": "case", "key": "geometry.file", "file": "input",
+                       "message": f"cannot read this gmsh file ({type(exc).__name__}: {exc})"})
+
+
+def _answer(work: Path, info: dict) -> None:
+    (work / "error.json").write_text(json.dumps(info))
