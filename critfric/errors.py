@@ -35,3 +35,9 @@ class SolverError(CritfricError):
     """A numerical stage failed: the message says what failed and what to try."""
 
     exit_code = 1
+
+
+class WriteError(CritfricError):
+    """An output could not be written (disk full, I/O error): nothing was changed."""
+
+    exit_code = 1

@@ -143,6 +143,11 @@ class Case:
         """The effective case (overrides applied) as TOML: re-running it gives the same run."""
         return tomli_w.dumps(self.raw)
 
+    def inputs(self) -> list[Path]:
+        """The files this case reads: the case file itself and its gmsh file, if any."""
+        files = [Path(self.source)] if Path(self.source).is_file() else []
+        return files + ([geometry_file(self)] if self.geometry.get("shape") == "file" else [])
+
     def with_overrides(self, overrides: dict[str, Any] | None) -> Case:
         """A new validated case with dotted-key ``overrides`` applied."""
         return from_dict(self.raw, source=self.source, name=self.name, text=self.text,

@@ -80,7 +80,7 @@ def solve(
     overrides = {OVERRIDES[k]: v for k, v in given.items() if v is not None}
     with reported("no result written (an existing file is unchanged)"):
         loaded = load_case(case, overrides=overrides)
-        path = check_output(default_output(loaded), force=force)
+        path = check_output(default_output(loaded), force=force, inputs=loaded.inputs())
         with interrupt_guard() as interrupted, output_lock(path):
             check_output(path, force=force)  # again: another run may have written it
             result = solve_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo)

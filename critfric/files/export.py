@@ -22,6 +22,7 @@ from ..errors import CaseError
 from ..fem.assembly import cell_stress, lame, von_mises
 from ..fem.mesh import Mesh
 from .results import file_attrs
+from .safety import check_output, staged
 
 FORMATS = ("xdmf", "vtu")
 _MESHIO_CELL = {"P1": "triangle", "P2": "triangle6", "Q1": "quad", "Q2": "quad9"}
@@ -111,9 +112,9 @@ def export_file(path: Path | str, *, fmt: str = "xdmf", output: Path | str | Non
         raise CaseError(f"would overwrite the input: XDMF keeps its arrays in "
                         f"{out.with_suffix('.h5').name}; choose another name", file=str(out),
                         key="--output")
-    if out.exists() and not force:
-        raise CaseError("exists already; pass --force to overwrite it", file=str(out),
-                        key="--output")
+    written = [out] + ([out.with_suffix(".h5")] if fmt == "xdmf" else [])
+    for target in written:  # the export and its companion: neither clobbered without --force
+        check_output(target, force=force, inputs=[path])
     data = read_solve(path)
     if not data.modes:
         raise CaseError("holds no mode (solved with [output] modes = false, or no real "
@@ -132,12 +133,9 @@ def export_file(path: Path | str, *, fmt: str = "xdmf", output: Path | str | Non
         cell_data[f"{name}_von_mises"] = [f["von_mises_cell"]]
     out_mesh = meshio.Mesh(points, [(_MESHIO_CELL[mesh.element], np.asarray(mesh.cells))],
                            point_data=point_data, cell_data=cell_data)
-    try:
+    with staged(written) as stage:  # written aside, then renamed: never half an export
         if fmt == "xdmf":
-            meshio.xdmf.write(out, out_mesh, data_format="HDF")
+            meshio.xdmf.write(stage[0], out_mesh, data_format="HDF")
         else:
-            meshio.vtu.write(out, out_mesh, binary=True)
-    except OSError as exc:
-        raise CaseError(f"cannot write the export ({exc})", file=str(out),
-                        key="--output") from None
+            meshio.vtu.write(stage[0], out_mesh, binary=True)
     return out

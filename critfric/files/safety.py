@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import fcntl
 import os
+import shutil
 import signal
 import sys
 import tempfile
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import h5py
 
-from ..errors import CaseError
+from ..errors import CaseError, WriteError
 
 
 class interrupt_guard:
@@ -52,24 +52,37 @@ class interrupt_guard:
             sys.unraisablehook = self._hook
 
 
+def _lock(fd: int) -> None:
+    """An exclusive, non-blocking lock on an open file (OSError if another process has it)."""
+    try:
+        import fcntl
+    except ImportError:  # Windows
+        import msvcrt
+
+        msvcrt.locking(fd, msvcrt.LK_NBLCK, 1)
+        return
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+
+
 @contextmanager
 def output_lock(path: Path | str):
     """Hold an exclusive lock for writing ``path``; refuse at once if another process has it.
 
-    The lock is ``fcntl.flock`` on ``.<name>.lock`` in the same directory (so a killed writer
-    never blocks a later run); the file is removed when the lock is released.
+    The lock is ``flock`` on ``.<name>.lock`` in the same directory (so a killed writer never
+    blocks a later run; a symbolic link there is refused, never followed); the file is removed
+    when the lock is released.
     """
     path = Path(path)
     lock = path.with_name(f".{path.name}.lock")
     while True:
         try:
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as exc:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+        except OSError as exc:  # a symbolic link planted as the lock: refused, not followed
             raise CaseError(f"cannot write in directory {str(path.parent)!r} ({exc.strerror}); "
                             "allowed: a file in a writable directory", file=str(path),
                             key="output.file") from None
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            _lock(fd)
         except OSError:
             holder = os.read(fd, 64).decode(errors="replace").strip() or "unknown"
             os.close(fd)
@@ -95,9 +108,18 @@ def output_lock(path: Path | str):
         os.close(fd)
 
 
-def check_output(path: Path, *, force: bool = False) -> Path:
-    """Refuse an output path that cannot be written, before any work is done."""
+def check_output(path: Path, *, force: bool = False, inputs=()) -> Path:
+    """Refuse an output path that cannot be written, or that is one of the ``inputs`` (even
+    under another name or through a link), before any work is done."""
     path = Path(path)
+    for given in inputs:
+        try:
+            same = given is not None and os.path.samefile(path, given)
+        except (OSError, ValueError):
+            same = False
+        if same:
+            raise CaseError(f"is an input of this command ({given}); allowed: an output that "
+                            "is not one of its inputs", file=str(path), key="output.file")
     try:
         os.stat(path)
     except FileNotFoundError:
@@ -122,25 +144,50 @@ def check_output(path: Path, *, force: bool = False) -> Path:
     return path
 
 
+def _mode() -> int:
+    """The permissions a new file gets here: 0o666 less the process umask."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
 def atomic_h5(path: Path, fill) -> Path:
-    """Write an HDF5 file through a temporary file in the same directory, then rename."""
+    """Write an HDF5 file whole or not at all: built in memory, written to a temporary file
+    in the same directory (permissions from the umask), then renamed over ``path``. A full
+    disk or an I/O error leaves the old file unchanged and no temporary file behind, and is a
+    :class:`WriteError` (exit 1)."""
+    import io
+
     path = Path(path)
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name[:200]}.", suffix=".tmp",
-                                   dir=path.parent or ".")
-    except OSError as exc:
-        raise CaseError(f"cannot write in this directory ({exc.strerror})", file=str(path),
-                        key="output.file") from None
-    os.close(fd)
-    try:
-        with h5py.File(tmp, "w") as f:
-            fill(f)
-        os.replace(tmp, path)
-    except OSError as exc:  # disk full, quota, file system gone: nothing partial is left
-        Path(tmp).unlink(missing_ok=True)
-        raise CaseError(f"cannot write the result file ({exc})", file=str(path),
-                        key="output.file") from None
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as f:
+        fill(f)
+    with staged([path]) as stage:
+        with open(stage[0], "wb") as out:
+            out.write(buffer.getbuffer())
+            out.flush()
+            os.fsync(out.fileno())
     return path
+
+
+@contextmanager
+def staged(paths: list[Path]):
+    """Yield temporary paths (same names, in a private directory beside the first target)
+    to write; on success rename each over its target, else remove them all."""
+    paths = [Path(p) for p in paths]
+    parent = paths[0].parent if str(paths[0].parent) else Path(".")
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=".critfric-", dir=parent))
+    except OSError as exc:
+        raise CaseError(f"cannot write in this directory ({exc.strerror})",
+                        file=str(paths[0]), key="output.file") from None
+    try:
+        yield [tmp / p.name for p in paths]
+        for p in paths:
+            (tmp / p.name).chmod(_mode())
+            os.replace(tmp / p.name, p)
+    except OSError as exc:  # disk full, quota, file system gone: nothing partial is left
+        raise WriteError(f"cannot write {paths[0]} ({exc.strerror or exc}); nothing was "
+                         "changed: free some space or choose another directory") from None
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)

@@ -35,9 +35,9 @@ import h5py
 import numpy as np
 
 from .._version import __version__
-from ..errors import CaseError
+from ..errors import CaseError, WriteError
 from .results import file_attrs
-from .safety import atomic_h5
+from .safety import atomic_h5, check_output
 
 SCHEMA_VERSION = 1
 STR = h5py.string_dtype()
@@ -54,6 +54,7 @@ def open_sweep(path: Path, *, case, grid, force: bool = False) -> set[tuple]:
     if path.is_dir():
         raise CaseError("is a directory; allowed: a file path for the sweep file",
                         file=str(path), key="--output")
+    check_output(path, force=True, inputs=case.inputs())
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir() or not os.access(parent, os.W_OK):
         raise CaseError(f"directory {str(parent)!r} does not exist or is not writable",
@@ -109,6 +110,11 @@ def _rewrite(path: Path) -> Iterator[h5py.File]:
         with h5py.File(tmp, "r+") as f:
             yield f
         os.replace(tmp, path)
+    except OSError as exc:  # disk full, I/O error: the file keeps every point written before
+        Path(tmp).unlink(missing_ok=True)
+        raise WriteError(f"cannot add a point to {path} ({exc.strerror or exc}); the points "
+                         "written before are kept: free some space and run the sweep again "
+                         "to compute only the rest") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

@@ -153,3 +153,76 @@ def test_a_small_msh_declaring_huge_tags_is_refused_without_the_memory(tmp_path)
 def test_garbage_msh_is_a_message(tmp_path, content):
     res, before = _run_file(tmp_path, "body.msh", content)
     _refused(res, tmp_path, before, "body.msh")
+
+
+# ------------------------------------------------------------------------- files at risk
+def test_an_output_that_is_an_input_is_refused(tmp_path):
+    case = tmp_path / "case.toml"
+    case.write_text('[geometry]\nshape = "square"\n[mesh]\nsize = 0.5\n')
+    before = _files(tmp_path)
+    for out in (case, tmp_path / "." / "case.toml"):
+        res = run_cli("solve", case, "-o", out, "--force")
+        _refused(res, tmp_path, before, "is an input")
+    link = tmp_path / "link.h5"
+    link.symlink_to(case)
+    before = _files(tmp_path)
+    _refused(run_cli("solve", case, "-o", link, "--force"), tmp_path, before, "is an input")
+    _refused(run_cli("sweep", case, "-o", case, "-j", "1"), tmp_path, before, "is an input")
+
+
+def test_a_planted_lock_symlink_is_not_followed(tmp_path):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    (tmp_path / ".r.h5.lock").symlink_to(victim)
+    res = run_cli("solve", "one-triangle", "-o", tmp_path / "r.h5")
+    assert res.exit_code == 2 and "Traceback" not in res.output, res.output
+    assert victim.read_text() == "precious" and not (tmp_path / "r.h5").exists()
+
+
+def test_results_get_the_umask_permissions(tmp_path):
+    import os
+
+    old = os.umask(0o027)
+    try:
+        assert run_cli("solve", "one-triangle", "-o", tmp_path / "r.h5").exit_code == 0
+        assert (tmp_path / "r.h5").stat().st_mode & 0o777 == 0o640
+    finally:
+        os.umask(old)
+
+
+def test_export_never_clobbers_its_companion(tmp_path):
+    assert run_cli("solve", "one-triangle", "-o", tmp_path / "r.h5").exit_code == 0
+    companion = tmp_path / "r_modes.h5"
+    companion.write_text("someone's data")
+    before = _files(tmp_path)
+    _refused(run_cli("export", tmp_path / "r.h5"), tmp_path, before, "r_modes.h5", "--force")
+    assert run_cli("export", tmp_path / "r.h5", "--force").exit_code == 0
+    assert companion.read_bytes()[:4] == b"\x89HDF"
+
+
+def test_a_full_disk_is_exit_1_and_leaves_the_old_file(tmp_path):
+    """The file-size limit stands in for a full disk: writing fails with EFBIG."""
+    import signal
+    import subprocess
+    import sys
+
+    from helpers import REPO
+
+    out = tmp_path / "r.h5"
+    out.write_bytes(b"old result")
+
+    def small_files():
+        import resource
+
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, 20_000))
+
+    proc = subprocess.run([sys.executable, "-m", "critfric", "solve", "unit-square", "-o", out,
+                           "--force"], cwd=tmp_path, capture_output=True, text=True,
+                          env={**__import__("os").environ, "PYTHONPATH": str(REPO)},
+                          preexec_fn=small_files, timeout=120)
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr.count("critfric: error:") == 1 and "Traceback" not in proc.stderr
+    assert "nothing was changed" in proc.stderr
+    assert out.read_bytes() == b"old result"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.h5"]
