@@ -8,6 +8,7 @@ names the file, the dotted key, the value and what is allowed.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,6 +20,9 @@ from ..case import checks as c
 from ..errors import CaseError
 from ..fem.elements import ELEMENTS, NAMES
 
+MAX_CASE_BYTES = 16 << 20  # a case file (inline meshes included) up to this size
+MAX_DEPTH = 8  # tables and arrays nested at most this deep (the schema needs 4)
+NUMBER_RANGE = (1e-100, 1e100)  # magnitudes of nonzero numbers: squares stay finite
 SHAPES = ("square", "rectangle", "parallelogram", "polygon", "mesh", "file")
 METHODS = ("auto", "arpack", "dense")
 BACKENDS = ("auto", "scipy", "pardiso")  # linear solvers: critfric.linsolve.BACKENDS
@@ -183,6 +187,10 @@ def load_case(case: str | Path, *, overrides: dict[str, Any] | None = None) -> C
     """Read and validate a case file (or a shipped case name), with dotted-key overrides."""
     path = resolve(case)
     try:
+        if path.stat().st_size > MAX_CASE_BYTES:
+            raise CaseError(f"is {path.stat().st_size >> 20} MB; allowed: case files up to "
+                            f"{MAX_CASE_BYTES >> 20} MB (a larger mesh belongs in a .msh file)",
+                            file=str(path))
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise CaseError(f"cannot read the case file: {exc}", file=str(path)) from None
@@ -192,11 +200,46 @@ def load_case(case: str | Path, *, overrides: dict[str, Any] | None = None) -> C
 def loads_case(text: str, *, source: str = "<string>", name: str = "case",
                overrides: dict[str, Any] | None = None) -> Case:
     """Parse and validate TOML text."""
+    if len(text) > MAX_CASE_BYTES:
+        raise CaseError(f"has {len(text)} characters; allowed: up to {MAX_CASE_BYTES}",
+                        file=source)
     try:
-        raw = tomllib.loads(text)
+        raw = tomllib.loads(text.removeprefix("\ufeff"))
     except tomllib.TOMLDecodeError as exc:
         raise CaseError(f"TOML syntax error: {exc}", file=source) from None
+    except RecursionError:
+        raise CaseError("arrays or tables nested too deeply; allowed: the nesting of the case "
+                        "schema (a few levels)", file=source) from None
     return from_dict(raw, source=source, name=name, text=text, overrides=overrides)
+
+
+def _short(value) -> str:
+    """repr(value), cut to 80 characters for a message."""
+    text = repr(value)
+    return text if len(text) <= 80 else text[:60] + f"... ({len(text)} characters)"
+
+
+def _check_numbers(value, source: str, key: str, depth: int = 0) -> None:
+    """Every number of a case within what critfric computes with (no overflow when squared,
+    no integer beyond 64 bits), every nesting within MAX_DEPTH."""
+    if depth > MAX_DEPTH:
+        raise CaseError(f"nested more than {MAX_DEPTH} levels deep; allowed: the nesting of "
+                        "the case schema", file=source, key=key.lstrip(".") or None)
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _check_numbers(v, source, f"{key}.{k}", depth + 1)
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            _check_numbers(v, source, f"{key}.{i}", depth + 1)
+    elif isinstance(value, bool):
+        return
+    elif isinstance(value, int) and abs(value) >= 2**63:
+        raise CaseError(f"got an integer of {len(str(abs(value)))} digits; allowed: integers "
+                        "below 2^63", file=source, key=key.lstrip("."))
+    elif isinstance(value, float) and math.isfinite(value) and value != 0 and not (
+            NUMBER_RANGE[0] <= abs(value) <= NUMBER_RANGE[1]):
+        raise CaseError(f"got {value:g}; allowed: numbers of magnitude in [{NUMBER_RANGE[0]:g}, "
+                        f"{NUMBER_RANGE[1]:g}] (or 0)", file=source, key=key.lstrip("."))
 
 
 def _apply_overrides(raw: dict, overrides: dict[str, Any], source: str) -> dict:
@@ -216,8 +259,12 @@ def _apply_overrides(raw: dict, overrides: dict[str, Any], source: str) -> dict:
 def from_dict(raw: dict, *, source: str = "<dict>", name: str = "case", text: str = "",
               overrides: dict[str, Any] | None = None) -> Case:
     """Validate a parsed case dict; return a :class:`Case` with all defaults filled."""
+    if not isinstance(raw, dict):
+        raise CaseError(f"got a {type(raw).__name__}; allowed: a table of sections",
+                        file=source)
     if overrides:
         raw = _apply_overrides(raw, overrides, source)
+    _check_numbers(raw, source, "")
     for key in raw:
         if key not in SCHEMA and key not in TOP_LEVEL:
             allowed = ", ".join(f"[{s}]" for s in SCHEMA) + ", " + ", ".join(TOP_LEVEL)
@@ -267,7 +314,8 @@ def _check(spec: c.Key, value, source: str, dotted: str):
     try:
         return spec.check(value)
     except c.Bad as bad:
-        raise CaseError(f"got {value!r}; allowed: {bad}", file=source, key=dotted) from None
+        raise CaseError(f"got {_short(value)}; allowed: {bad}", file=source,
+                        key=dotted) from None
 
 
 def _check_consistency(s: dict, source: str) -> None:

@@ -63,7 +63,7 @@ def read_solve(path: Path | str) -> SolveData:
             data = dict(alpha=f["eigen/alpha"][()], positive=f["critical/positive"][()],
                         negative=f["critical/negative"][()],
                         contact_nodes=f["mesh/contact_nodes"][()])
-    except (OSError, KeyError) as exc:
+    except (OSError, KeyError, ValueError, TypeError, IndexError) as exc:
         raise CaseError(f"cannot read this result file ({exc})", file=str(path)) from None
     try:
         contact = tomllib.loads(attrs.get("case_toml", "")).get("boundary", {}).get(

@@ -30,6 +30,7 @@ import numpy as np
 from .._version import __version__
 from ..errors import CaseError
 from ..solvers.eigen import INFINITE_TOL, RESIDUAL_TOL
+from . import validate
 from .safety import atomic_h5, check_output
 
 SCHEMA_VERSION = 1
@@ -91,6 +92,7 @@ def file_attrs(f: h5py.File, kind: str, path: Path) -> dict:
     if f.attrs.get("kind") != kind:
         raise CaseError(f"is not a critfric {kind} file (no kind = '{kind}' attribute)",
                         file=str(path))
+    validate.check(f, kind, Path(path))
     return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
 
 
@@ -114,5 +116,5 @@ def read_summary(path: Path | str) -> dict:
                 "complete": bool(a.get("complete", True)),
                 "seconds": float(a["seconds"]), "warnings": json.loads(a["warnings"]),
             }
-    except (OSError, KeyError) as exc:
+    except (OSError, KeyError, ValueError, TypeError, IndexError) as exc:
         raise CaseError(f"cannot read this result file ({exc})", file=str(path)) from None

@@ -150,7 +150,7 @@ def read_sweep(path: Path) -> dict:
             n = len(g["status"])
             cols = {name: g[name][:n] for name in g}
             limits = _read_table(f["limits"]) if "limits" in f else []
-    except (OSError, KeyError) as exc:
+    except (OSError, KeyError, ValueError, TypeError, IndexError) as exc:
         raise CaseError(f"cannot read this sweep file ({exc})", file=str(path)) from None
     rows = []
     for i in range(n):

@@ -112,6 +112,7 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
             found.append((bisect.bisect_right(newlines, offset) + 1, word, why))
 
     seen: set[int] = set()
+    field_options: set[int] = set()  # token indices of Field[...].<option> names
 
     for i, (kind, value, offset) in enumerate(tokens):
         if kind == "other" and value in "$@\\`":
@@ -120,8 +121,8 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
             continue
         before = tokens[i - 1][1] if i else ""
         after = tokens[i + 1][1] if i + 1 < len(tokens) else ""
-        if before == ".":  # an option or field option: checked with its owner below
-            continue
+        if before == "." and (i in field_options or i >= 2 and tokens[i - 2][1] in OPTIONS):
+            continue  # an option (Mesh.X) or field option (Field[1].X): checked with its owner
         if value in OPTIONS:
             if after == ".":
                 option = tokens[i + 2][1] if i + 2 < len(tokens) else ""
@@ -145,6 +146,7 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
                            "not allow (it may run a program or read a file)")
             elif nxt == "." and j + 1 < len(tokens):
                 option = tokens[j + 1][1]
+                field_options.add(j + 1)
                 if option not in FIELD_OPTIONS:
                     refuse(tokens[j + 1][2], option, "a field option critfric does not allow")
             continue

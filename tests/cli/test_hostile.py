@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 import pytest
 from helpers import SQUARE_GEO, run_cli
 
@@ -226,3 +227,135 @@ def test_a_full_disk_is_exit_1_and_leaves_the_old_file(tmp_path):
     assert "nothing was changed" in proc.stderr
     assert out.read_bytes() == b"old result"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r.h5"]
+
+
+# ------------------------------------------------------------------------- case files
+@pytest.mark.parametrize("what,text,words", [
+    ("huge coordinates", '[geometry]\nshape = "square"\nside = 1e300\n[mesh]\nsize = 1e299\n',
+     ["geometry.side", "1e+300", "magnitude"]),
+    ("a 332-digit integer", f'[geometry]\nshape = "square"\n[solve]\ncount = {2**1100}\n',
+     ["solve.count", "332 digits"]),
+    ("deep nesting", '[geometry]\nshape = "polygon"\nvertices = ' + "[" * 5000 + "]" * 5000,
+     ["nested too deeply"]),
+    ("deep but parseable", '[geometry]\nshape = "polygon"\nvertices = ' + "[" * 30 + "]" * 30,
+     ["nested more than"]),
+    ("a tiny size", '[geometry]\nshape = "square"\n[mesh]\nsize = 1e-300\n',
+     ["mesh.size", "magnitude"]),
+])
+def test_hostile_case_files_are_refused_with_a_message(tmp_path, what, text, words):
+    case = tmp_path / "case.toml"
+    case.write_text(text)
+    before = _files(tmp_path)
+    _refused(run_cli("solve", case, "-o", tmp_path / "r.h5"), tmp_path, before, "case.toml",
+             *words)
+
+
+def test_a_huge_case_file_is_refused_unread(tmp_path):
+    case = tmp_path / "case.toml"
+    case.write_text('[geometry]\nshape = "square"\n' + "# padding\n" * 2_000_000)
+    before = _files(tmp_path)
+    _refused(run_cli("solve", case, "-o", tmp_path / "r.h5"), tmp_path, before, "MB")
+
+
+def test_a_byte_order_mark_in_a_case_file_is_fine(tmp_path):
+    case = tmp_path / "case.toml"
+    case.write_text('\ufeff[geometry]\nshape = "square"\n[mesh]\nsize = 0.5\n', encoding="utf-8")
+    assert run_cli("solve", case, "-o", tmp_path / "r.h5").exit_code == 0
+
+
+# ------------------------------------------------------------------------- result files
+def _crafted(tmp_path, source, name, edit):
+    import shutil
+
+    import h5py
+
+    out = tmp_path / f"{name}.h5"
+    shutil.copy(source, out)
+    with h5py.File(out, "r+") as f:
+        edit(f)
+    return out
+
+
+def _replace(f, key, value):
+    del f[key]
+    f[key] = value
+
+
+SOLVE_EDITS = {
+    "strings for eigenvalues": lambda f: _replace(f, "eigen/alpha", np.array([b"x"])),
+    "a 2-D family": lambda f: _replace(f, "critical/positive", np.zeros((2, 2))),
+    "a missing attribute": lambda f: f.attrs.__delitem__("n_dofs"),
+    "a string for nu": lambda f: f.attrs.__setitem__("nu", "abc"),
+    "NaN coefficients": lambda f: _replace(f, "critical/positive", np.array([np.nan])),
+    "a huge declared dataset": lambda f: (f.__delitem__("eigen/alpha"), f.create_dataset(
+        "eigen/alpha", shape=(10**12,), dtype="c16", chunks=(1000,))),
+    "cells past the nodes": lambda f: _replace(f, "mesh/cells", np.array([[0, 1, 99]])),
+    "no mesh": lambda f: f.__delitem__("mesh"),
+    "bad json": lambda f: f.attrs.__setitem__("warnings", "[oops"),
+}
+
+
+@pytest.mark.parametrize("edit", sorted(SOLVE_EDITS))
+def test_crafted_solve_files_are_messages(tmp_path, edit):
+    good = tmp_path / "good.h5"
+    assert run_cli("solve", "one-triangle", "-o", good).exit_code == 0
+    bad = _crafted(tmp_path, good, "bad", SOLVE_EDITS[edit])
+    before = _files(tmp_path)
+    for args in (["table", bad], ["plot", bad], ["export", bad]):
+        _refused(run_cli(*args), tmp_path, before, "bad.h5")
+
+
+SWEEP_EDITS = {
+    "strings for nu": lambda f: _replace(f, "points/nu", np.array([b"a", b"b"])),
+    "a short column": lambda f: _replace(f, "points/h", np.zeros(1)),
+    "1-D positives": lambda f: _replace(f, "points/positive", np.zeros(2)),
+    "an unknown element": lambda f: _replace(f, "points/element", np.array([b"P9", b"P9"])),
+    "grid not json": lambda f: f.attrs.__setitem__("grid", "{"),
+}
+
+
+@pytest.mark.parametrize("edit", sorted(SWEEP_EDITS))
+def test_crafted_sweep_files_are_messages(tmp_path, edit):
+    good = tmp_path / "good.h5"
+    assert run_cli("sweep", "four-triangles", "--nu", "0.2,0.3", "-o", good,
+                   "-j", "1").exit_code == 0
+    bad = _crafted(tmp_path, good, "bad", SWEEP_EDITS[edit])
+    before = _files(tmp_path)
+    _refused(run_cli("plot", bad), tmp_path, before, "bad.h5")
+
+
+# ------------------------------------------------------------------------- fuzzing
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+SCALE = float(__import__("os").environ.get("CRITFRIC_FUZZ_SCALE", "1"))
+VOCABULARY = sorted(geoscript.STATEMENTS | geoscript.FUNCTIONS) + sorted(geoscript.KNOWN) + [
+    "lc", "x", "=", ";", "(", ")", "{", "}", "[", "]", ",", ".", ">", "~", "+", "1", "0.5",
+    "1e5", '"s"', "//", "/*", "*/", "\n", "Mesh.Algorithm", "General.Terminal", "Field[1]",
+    "ExternalProcess", "Distance", "FileName", "PointsList"]
+
+
+@settings(max_examples=int(300 * SCALE), deadline=None, derandomize=SCALE <= 1,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.sampled_from(VOCABULARY), max_size=60))
+def test_geo_token_streams_never_slip_a_known_hazard_through(tokens):
+    text = " ".join(tokens)
+    found = geoscript.refusals(text)  # never raises
+    words = {w for _, w, _ in found}
+    # a hazard outside comments and strings is always among the refusals
+    code = [kind_value for kind_value in geoscript._tokens(text)
+            if kind_value[0] == "name"]
+    for _, value, _ in code:
+        if value in geoscript.KNOWN:
+            assert value in words, text
+
+
+@settings(max_examples=max(1, int(6 * SCALE)), deadline=None, derandomize=SCALE <= 1,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(st.tuples(*[st.integers(-5, 2**40) for _ in range(4)]))
+def test_msh_headers_with_any_counts_are_messages(tmp_path_factory, counts):
+    tmp_path = tmp_path_factory.mktemp("msh")
+    text = SPARSE_MSH.replace("1 3 1 1000000000", " ".join(map(str, counts)))
+    res, before = _run_file(tmp_path, "body.msh", text)
+    assert res.exit_code in (1, 2) and "Traceback" not in res.output, res.output
+    assert res.output.count("critfric: error:") == 1
