@@ -30,6 +30,7 @@ from .fem.mesh import shoelace
 
 BYTES_PER_DOF_LOG = 250.0
 BASE_BYTES = 150e6
+DENSE_COPIES = 6  # dense stage: S, its Cholesky factor, T, eigenvectors, workspace
 _CELL_AREA = {"triangle": math.sqrt(3) / 2, "quad": 1.0}  # cell area / size^2
 
 
@@ -55,6 +56,20 @@ class Footprint:
     def dofs(self, h: float, element: str) -> float:
         """Estimated DOF count at mesh size ``h``: two per node."""
         return 2.0 * self.nodes(h, element)
+
+    def graded_nodes(self, h: float, element: str, grading: float, radius: float,
+                     points: int = 2) -> float:
+        """Extra nodes of a mesh graded to size g h at ``points`` points, growing linearly to
+        h at distance ``radius``: per point on the boundary, the integral of theta r / (c s(r)^2)
+        over a sector of angle theta = 3 pi / 2 (a corner of up to 270 degrees), theta R^2
+        (ln(1/g) - 1 + g) / (c h^2 (1 - g)^2) (theta R^2 / (2 c h^2) as g -> 1)."""
+        spec, g = get_element(element), float(grading)
+        if g >= 1.0:
+            return 0.0
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            per = 1.5 * math.pi * radius**2 * (math.log(1 / g) - 1 + g) / (
+                _CELL_AREA[spec.reference] * h * h * (1 - g) ** 2)
+        return float(points * spec.order**2 * per)
 
     def finest_size(self, max_dofs: float, element: str) -> float:
         """The smallest h with ``dofs(h) <= max_dofs`` (inf if even one cell is too many)."""
@@ -82,6 +97,16 @@ def available_memory() -> float:
             avail = float(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
         except (ValueError, OSError, AttributeError):
             avail = 8e9
+    try:  # an address-space cap (ulimit -v): what is left of it
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if soft != resource.RLIM_INFINITY:
+            size = float(Path("/proc/self/statm").read_text().split()[0]) * os.sysconf(
+                "SC_PAGE_SIZE")
+            avail = min(avail, max(soft - size, 0.0))
+    except (ImportError, OSError, ValueError, IndexError):
+        pass
     try:
         limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
         used = Path("/sys/fs/cgroup/memory.current").read_text().strip()
@@ -92,10 +117,15 @@ def available_memory() -> float:
     return avail
 
 
-def memory_estimate(n_dofs: float) -> float:
-    """Peak bytes of a solve with ``n_dofs`` degrees of freedom."""
+def memory_estimate(n_dofs: float, n_contact: float = 0.0) -> float:
+    """Peak bytes of a solve with ``n_dofs`` degrees of freedom and ``n_contact`` contact
+    nodes: the sparse factorization, plus the dense stage (the 2p x 2p Schur complement and
+    the p x p pencil with its eigenvectors and LAPACK workspace, about DENSE_COPIES copies)."""
     n = max(float(n_dofs), 2.0)
-    return BASE_BYTES + BYTES_PER_DOF_LOG * n * math.log2(n) if math.isfinite(n) else math.inf
+    if not (math.isfinite(n) and math.isfinite(n_contact)):
+        return math.inf
+    dense = DENSE_COPIES * 8.0 * (2.0 * n_contact) ** 2
+    return BASE_BYTES + BYTES_PER_DOF_LOG * n * math.log2(n) + dense
 
 
 def dofs_that_fit(memory: float) -> float:
@@ -121,13 +151,13 @@ def _bytes(b: float) -> str:
 
 def check_dofs(n_dofs: float, *, element: str, what: str, source: str | None,
                key: str | None = "mesh.size", footprint: Footprint | None = None,
-               max_dofs: int | None = None) -> None:
+               max_dofs: int | None = None, n_contact: float = 0.0) -> None:
     """Refuse ``n_dofs`` above ``max_dofs`` or, without it, above what memory allows.
 
     ``what`` says where the count comes from (e.g. "mesh.size = 1e-05"); with a
     ``footprint`` the message also gives the finest mesh size that fits.
     """
-    need = memory_estimate(n_dofs)
+    need = memory_estimate(n_dofs, n_contact)
     if max_dofs is not None:
         if n_dofs <= max_dofs:
             return

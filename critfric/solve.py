@@ -7,6 +7,7 @@ rest. ``solve_case`` chains them: it is what ``critfric solve`` calls.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +19,7 @@ from .case.schema import Case, load_case
 from .errors import CaseError
 from .fem.assembly import assemble_elasticity, lame
 from .fem.contact import ContactSystem, check_held, contact_system
+from .fem.elements import get_element
 from .fem.mesh import Mesh
 from .guards import check_dofs, polygon_footprint
 from .meshing.geometry import parallelogram, polygon, rectangle, validate
@@ -124,12 +126,25 @@ def geometry_polygon(case: Case):
 
 
 def _checked_polygon(case: Case, max_dofs: int | None):
+    """The polygon of a case, after the resource guard on the mesh it will give (grading
+    and the dense stage on the contact nodes counted)."""
     poly = geometry_polygon(case)
     m = case.mesh
+    h, element, g = m["size"], m["element"], m["grading"]
     footprint = polygon_footprint(poly.vertices)
-    check_dofs(footprint.dofs(m["size"], m["element"]), element=m["element"],
-               what=f"mesh.size = {m['size']:g}", source=case.source, footprint=footprint,
-               max_dofs=max_dofs)
+    contact = [n for n in case.boundary["contact"] if n in poly.edge_names]
+    seg = poly.segments[poly.edge_indices(contact)] if contact else np.zeros((0, 2, 2))
+    length = float(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1).sum())
+    order = get_element(element).order
+    n_contact = order * length / h
+    dofs = footprint.dofs(h, element)
+    if g is not None and g < 1:
+        radius = 0.5 * length  # build_mesh grades over half the contact run from each end
+        dofs += 2.0 * footprint.graded_nodes(h, element, g, radius)
+        n_contact += order * 2 * radius * math.log(1 / g) / (h * (1 - g))
+    check_dofs(dofs, element=element, what=f"mesh.size = {h:g}"
+               + (f" graded by {g:g}" if g is not None else ""), source=case.source,
+               footprint=footprint, max_dofs=max_dofs, n_contact=n_contact)
     return poly
 
 
@@ -172,6 +187,9 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False)
     dirichlet = [name for name in case.boundary["dirichlet"] if name in mesh.edges]
     if dirichlet:  # unknown names are reported by contact_system
         check_held(mesh, mesh.edge_nodes(dirichlet), source=case.source)
+    contact = [name for name in case.boundary["contact"] if name in mesh.edges]
+    check_dofs(2.0 * mesh.n_nodes, element=mesh.element, what="the mesh made", source=case.source,
+               max_dofs=max_dofs, n_contact=len(mesh.edge_nodes(contact)))  # what is real
     t1 = time.perf_counter()
     K_lam, K_G = assemble_elasticity(mesh)
     t2 = time.perf_counter()

@@ -79,7 +79,7 @@ def run_cli(*args):
     """``critfric ARGS`` in this process (typer's CliRunner); every argument str()-ed."""
     from typer.testing import CliRunner
 
-    from critfric.cli import app
+    from critfric.cli.app import app
 
     return CliRunner().invoke(app, [str(a) for a in args])
 

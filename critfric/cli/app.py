@@ -19,7 +19,7 @@ from ..fem.elements import NAMES
 from ..files.results import default_output, read_summary, write_result
 from ..files.safety import check_output, interrupt_guard, output_lock
 from ..solve import solve_case
-from .failures import INTERRUPTED, reported, say
+from .failures import reported, say
 
 app = typer.Typer(
     add_completion=False,
@@ -287,11 +287,3 @@ def main_callback(
                                  is_eager=True, help="Print the version and exit."),
 ) -> None:
     """critfric: critical friction coefficients (Hassani, Hild, Ionescu, Sakki 2003)."""
-
-
-def main() -> None:
-    try:
-        app()
-    except KeyboardInterrupt:  # outside a command (start-up, option parsing)
-        say("critfric: interrupted")
-        sys.exit(INTERRUPTED)

@@ -13,6 +13,7 @@ from ..fem.elements import NAMES
 NU_POINTS = 11  # points of a range A:B given without N
 
 
+MAX_POINTS = 10_000  # a sweep has at most this many points (nu x size x element)
 NU_GAP = 1e-3  # a range reaching nu = 1/2 stops at 1/2 - min(NU_GAP, step / 2)
 
 
@@ -77,9 +78,10 @@ def parse_nu(text: str) -> tuple[list[float], list[str]]:
         lo, hi = _float(parts[0], "--nu"), _float(parts[1], "--nu")
         n = NU_POINTS
         if len(parts) == 3:
-            if not parts[2].strip().isdigit() or int(parts[2]) < 2:
-                raise CaseError(f"got N = {parts[2]!r} in {text!r}; allowed: an integer >= 2",
-                                key="--nu")
+            digits = parts[2].strip()
+            if not digits.isdigit() or len(digits) > 7 or not 2 <= int(digits) <= MAX_POINTS:
+                raise CaseError(f"got N = {parts[2][:20]!r}; allowed: an integer >= 2 and <= "
+                                f"{MAX_POINTS}", key="--nu")
             n = int(parts[2])
         if not (0.0 <= lo < hi <= 0.5):
             raise CaseError(f"got {text!r}; allowed: 0 <= A < B <= 0.5", key="--nu")
@@ -89,6 +91,9 @@ def parse_nu(text: str) -> tuple[list[float], list[str]]:
             notes.append(f"nu = 0.5 is singular (incompressible): the range is sampled up to "
                          f"nu = {values[-1]:.6g}, never at 0.5")
         return [float(f"{v:.12g}") for v in values], notes  # 0.15, not 0.15000000000000002
+    if text.count(",") >= MAX_POINTS:
+        raise CaseError(f"got {text.count(',') + 1} values; allowed: at most {MAX_POINTS}",
+                        key="--nu")
     values = [_float(v, "--nu") for v in text.split(",") if v.strip()]
     bad = [v for v in values if not 0.0 <= v < 0.5]
     if not values or bad:
@@ -98,6 +103,9 @@ def parse_nu(text: str) -> tuple[list[float], list[str]]:
 
 def parse_sizes(text: str) -> list[float]:
     """``h1,h2,...``: distinct positive mesh sizes, coarsest first."""
+    if text.count(",") >= MAX_POINTS:
+        raise CaseError(f"got {text.count(',') + 1} sizes; allowed: at most {MAX_POINTS}",
+                        key="--size")
     values = [_float(v, "--size") for v in text.split(",") if v.strip()]
     if not values or any(v <= 0 for v in values):
         raise CaseError(f"got {text!r}; allowed: positive mesh sizes h1,h2,...", key="--size")

@@ -22,11 +22,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..case.schema import Case, from_dict
+from ..errors import CaseError
 from ..files import sweepfile
 from ..solve import Prepared, preflight, prepare, solve_prepared
 from . import workers
 from .extrapolate import Limit, limits_of
-from .grid import Grid, Point, empty_row, parse_elements, parse_nu, parse_sizes
+from .grid import MAX_POINTS, Grid, Point, empty_row, parse_elements, parse_nu, parse_sizes
 
 CACHE_SIZE = 2  # prepared systems kept per worker process
 
@@ -239,6 +240,11 @@ def make_grid(case: Case, *, nu: str | None = None, size: str | None = None,
     nus, notes = parse_nu(nu) if nu is not None else ([case.material["nu"]], [])
     sizes = parse_sizes(size) if size is not None else [case.mesh["size"]]
     elements = parse_elements(element) if element is not None else [case.mesh["element"]]
+    total = len(nus) * len(sizes) * len(elements)
+    if total > MAX_POINTS:
+        raise CaseError(f"{len(nus)} nu x {len(sizes)} sizes x {len(elements)} elements = "
+                        f"{total} points; allowed: at most {MAX_POINTS} points per sweep",
+                        key="--nu")
     for s in sizes:
         for el in elements:
             preflight(case.with_overrides(_overrides(Point(nus[0], s, el))),

@@ -359,3 +359,64 @@ def test_msh_headers_with_any_counts_are_messages(tmp_path_factory, counts):
     res, before = _run_file(tmp_path, "body.msh", text)
     assert res.exit_code in (1, 2) and "Traceback" not in res.output, res.output
     assert res.output.count("critfric: error:") == 1
+
+
+# ------------------------------------------------------------------------- resources
+@pytest.mark.parametrize("grading", [0.3, 0.1, 0.03])
+def test_the_guard_counts_graded_meshes_from_above(grading):
+    """The estimate of a graded mesh is never below the mesh gmsh makes (it was 3.6-9x)."""
+    import critfric
+    from critfric.guards import polygon_footprint
+    from critfric.meshing import rectangle
+
+    h = 0.05
+    mesh = critfric.prepare(critfric.load_case("unit-square", overrides={
+        "mesh.size": h, "mesh.grading": grading})).mesh
+    fp = polygon_footprint(rectangle(1.0, 1.0).vertices)
+    estimate = fp.dofs(h, "P1") + 2 * fp.graded_nodes(h, "P1", grading, 0.5)
+    assert 2 * mesh.n_nodes <= estimate <= 6 * 2 * mesh.n_nodes
+
+
+def test_sweeps_out_of_reach_are_refused_before_the_first_point(tmp_path):
+    before = _files(tmp_path)
+    start = time.monotonic()
+    for nu in ("0:0.4:100000000", "0:0.4:5000"):
+        res = run_cli("sweep", "--nu", nu, "--size", "0.1,0.05,0.025", "-o",
+                      tmp_path / "s.h5")
+        _refused(res, tmp_path, before, "--nu", "10000")
+    assert time.monotonic() - start < 10
+
+
+def test_an_address_space_cap_is_exit_2_with_the_estimate(tmp_path):
+    import os
+    import resource
+    import subprocess
+    import sys
+
+    from helpers import REPO
+
+    def cap():
+        resource.setrlimit(resource.RLIMIT_AS, (2 * 2**30, 2 * 2**30))
+
+    proc = subprocess.run([sys.executable, "-m", "critfric", "solve", "unit-square", "--size",
+                           "0.002", "-o", tmp_path / "r.h5"], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(REPO)}, preexec_fn=cap,
+                          timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert "is available" in proc.stderr and "finest mesh size" in proc.stderr
+    assert "Traceback" not in proc.stderr and not (tmp_path / "r.h5").exists()
+
+
+@pytest.mark.parametrize("delay", [0.05, 0.15, 0.3])
+def test_ctrl_c_at_any_moment_of_start_up_is_130_without_traceback(tmp_path, delay):
+    from helpers import cli_process
+
+    proc = cli_process("solve", "one-triangle", "-o", tmp_path / "r.h5",
+                       stdout=__import__("subprocess").DEVNULL)
+    time.sleep(delay)
+    proc.send_signal(__import__("signal").SIGINT)
+    err = proc.communicate(timeout=60)[1]
+    assert proc.returncode in (0, 130) and "Traceback" not in err, err
+    if proc.returncode == 130:
+        assert err.strip().splitlines()[-1].startswith("critfric: interrupted")
+        assert not (tmp_path / "r.h5").exists()
