@@ -43,7 +43,7 @@ shell: $(STAMP)
 
 # property-based fuzzing of the case loader and the CLI: the test suite's examples, x SCALE
 fuzz: $(STAMP)
-	CRITFRIC_FUZZ_SCALE=$(or $(SCALE),30) $(BIN)/python -m pytest -q tests/test_fuzz.py
+	CRITFRIC_FUZZ_SCALE=$(or $(SCALE),30) $(BIN)/python -m pytest -q tests/cli/test_fuzz.py tests/cli/test_hostile.py -k 'fuzz or token or msh_headers'
 
 clean:
 	rm -rf $(VENV) $(DEMO) .pytest_cache .hypothesis

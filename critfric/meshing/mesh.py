@@ -17,6 +17,7 @@ from .geometry import Polygon, collinear_run, positive_number, validate
 #: unstructured meshes above this many estimated vertices are meshed coarser, then split
 #: uniformly (gmsh refine) until they reach ``size``: same quality, ~10x faster for 1e6 DOFs
 REFINE_ABOVE = 60_000
+MIN_QUALITY = 1e-6  # inline and file meshes: area / longest edge^2 of every cell at least this
 
 
 # ---------------------------------------------------------------------------------------------
@@ -261,6 +262,14 @@ def inline_mesh(nodes, cells, edges: dict, element: str) -> Mesh:
     if bad.any():
         raise CaseError(f"cell {int(np.argmax(bad))} is degenerate"
                         + (" or not convex" if nv == 4 else ""), key=ckey)
+    v = points[cells]
+    longest = np.max(np.sum((np.roll(v, -1, axis=1) - v) ** 2, axis=-1), axis=1)
+    quality = np.abs(area) / longest  # 0.43 for an equilateral triangle, 1 for a square
+    if quality.min() < MIN_QUALITY:
+        i = int(np.argmin(quality))
+        raise CaseError(f"cell {i} is a sliver (area / longest edge^2 = {quality[i]:.2g}, nodes "
+                        f"{cells[i].tolist()}): its stiffness would be singular to rounding; "
+                        f"allowed: cells with area / longest edge^2 >= {MIN_QUALITY:g}", key=ckey)
     unused = np.setdiff1d(np.arange(n), cells)
     if len(unused):
         raise CaseError(f"node {int(unused[0])} belongs to no cell", key="geometry.nodes")

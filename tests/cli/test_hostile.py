@@ -420,3 +420,14 @@ def test_ctrl_c_at_any_moment_of_start_up_is_130_without_traceback(tmp_path, del
     if proc.returncode == 130:
         assert err.strip().splitlines()[-1].startswith("critfric: interrupted")
         assert not (tmp_path / "r.h5").exists()
+
+
+def test_a_sliver_cell_is_named_not_blamed_on_the_dirichlet_data(tmp_path):
+    case = tmp_path / "case.toml"
+    case.write_text('[geometry]\nshape = "mesh"\nnodes = [[0, 0], [1, 0], [1, 1], [0, 1], '
+                    '[0.5, 1e-9]]\ntriangles = [[0, 1, 4], [1, 2, 4], [4, 2, 3], [0, 4, 3]]\n'
+                    '[geometry.edges]\nbottom = [[0, 1]]\ntop = [[2, 3]]\n')
+    before = _files(tmp_path)
+    res = run_cli("solve", case, "-o", tmp_path / "r.h5")
+    _refused(res, tmp_path, before, "geometry.triangles", "sliver", "cell 0")
+    assert "Dirichlet" not in res.output
