@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DEMO   := demo
 
-.PHONY: all venv demo test fuzz shell clean
+.PHONY: all venv demo test test-nofast fuzz shell clean
 
 all: test
 
@@ -36,6 +36,17 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
+# the same suite on a SciPy-only install (no MKL): what a plain `pip install critfric` gets
+NOFAST := .venv-nofast
+$(NOFAST)/.installed: pyproject.toml $(STAMP)
+	@test -x $(NOFAST)/bin/python || $(PYTHON) -m venv $(NOFAST)
+	$(NOFAST)/bin/python -m pip install -q --disable-pip-version-check -e '.[test]'
+	@touch $@
+
+test-nofast: $(NOFAST)/.installed
+	$(NOFAST)/bin/python -c 'import importlib.util as u; assert u.find_spec("pypardiso") is None'
+	$(NOFAST)/bin/python -m pytest -q
+
 # a shell with the virtual environment active (critfric on PATH); `exit` leaves it
 shell: $(STAMP)
 	@echo "critfric is on PATH in this shell; 'exit' leaves it" >&2
@@ -46,4 +57,4 @@ fuzz: $(STAMP)
 	CRITFRIC_FUZZ_SCALE=$(or $(SCALE),30) $(BIN)/python -m pytest -q tests/cli/test_fuzz.py tests/cli/test_hostile.py -k 'fuzz or token or msh_headers'
 
 clean:
-	rm -rf $(VENV) $(DEMO) .pytest_cache .hypothesis
+	rm -rf $(VENV) $(NOFAST) $(DEMO) .pytest_cache .hypothesis
