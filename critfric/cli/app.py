@@ -15,8 +15,9 @@ import typer
 
 from .._version import __version__
 from ..case.schema import BACKENDS, METHODS, OVERRIDES, load_case, shipped_cases
+from ..errors import CaseError
 from ..fem.elements import NAMES
-from ..files.results import default_output, read_summary, write_result
+from ..files.results import default_output, write_result
 from ..files.safety import check_output, interrupt_guard, output_lock
 from ..solve import solve_case
 from .failures import reported, say
@@ -121,12 +122,20 @@ def cases() -> None:
 
 @app.command()
 def table(
-    files: list[Path] = typer.Argument(..., help="Result files written by `critfric solve`."),
+    files: list[Path] = typer.Argument(..., help="Solve or sweep files (other files are "
+                                       "skipped, and named)."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list instead."),
 ) -> None:
-    """Print a table of the results stored in solve files."""
+    """Print a table of the results in solve files and of the points of sweep files."""
+    from ..files.catalog import summaries
+
     with reported():
-        rows = [read_summary(f) for f in files]
+        rows, skipped = summaries(files)
+        for path, why in skipped:
+            say(f"critfric: note: skipped {path}: {why}")
+        if not rows:
+            raise CaseError(f"no solve or sweep file among the {len(files)} given",
+                            key="table")
     typer.echo(json.dumps(rows) if as_json else _table(rows))
 
 
@@ -149,7 +158,7 @@ def sweep(
     scheduler: Optional[str] = typer.Option(None, help="Run on this Dask scheduler "
                                             "(e.g. tcp://host:8786) instead."),
     output: Optional[Path] = typer.Option(None, "--output", "-o", help="Sweep file "
-                                          "[default: <case name>_sweep.h5]."),
+                                          "[default: <case name>_sweep_<digest of case and grid>.h5]."),
     force: bool = typer.Option(False, "--force", help="Discard an existing sweep file written "
                                "for another case or grid."),
     as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
@@ -171,7 +180,7 @@ def sweep(
                          trust_geo=trust_geo)
         for note in grid.notes:
             say(f"critfric: note: {note}")
-        out = output or sweep_output(loaded)
+        out = output or sweep_output(loaded, grid)
         with interrupt_guard() as interrupted, output_lock(out), \
                 progress_bar(enabled=not as_json and sys.stderr.isatty()) as on_point:
 
@@ -184,6 +193,7 @@ def sweep(
                                trust_geo=trust_geo)
         pngs = plot_file(result.path) if plot else []
     typer.echo(json.dumps(result.summary()) if as_json else report_sweep(result))
+    say(f"wrote {out}")
     for png in pngs:
         say(f"wrote {png}")
 

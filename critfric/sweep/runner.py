@@ -12,6 +12,7 @@ at once, so an interrupted sweep re-run with the same arguments computes only wh
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import os
 import threading
@@ -187,9 +188,11 @@ def _in_process(spec: dict, points: list[Point]):
             yield p, run_point(spec, p)
 
 
-def default_output(case: Case) -> Path:
-    """``<case name>_sweep.h5`` in the current directory."""
-    return Path(f"{case.name}_sweep.h5")
+def default_output(case: Case, grid: Grid) -> Path:
+    """``<case name>_sweep_<digest>.h5`` in the current directory, the digest naming the case
+    and the grid: the same command resumes the same file, another grid never clashes."""
+    key = json.dumps([case.to_toml(), grid.to_json()], sort_keys=True).encode()
+    return Path(f"{case.name}_sweep_{hashlib.sha1(key).hexdigest()[:6]}.h5")
 
 
 def report_sweep(sweep: Sweep) -> str:

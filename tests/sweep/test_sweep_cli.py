@@ -29,7 +29,8 @@ def test_sweep_as_written_sweeps_the_unit_square(tmp_path, monkeypatch):
     res = run_cli("sweep", "--nu", "0:0.5")
     assert res.exit_code == 0, res.output
     assert "0.499" in res.stderr and "never at 0.5" in res.stderr
-    out = tmp_path / "unit_square_sweep.h5"
+    (out,) = tmp_path.glob("unit_square_sweep_*.h5")  # named after the case and the grid
+    assert f"wrote {out.name}" in res.stderr
     with h5py.File(out) as f:
         assert f.attrs["kind"] == "sweep" and len(f["points/status"]) == 11
         nu = f["points/nu"][()]
@@ -39,6 +40,10 @@ def test_sweep_as_written_sweeps_the_unit_square(tmp_path, monkeypatch):
     assert status.count("ok") >= 10  # nu = 0 has no real eigenvalue on this mesh
     assert "0.3" in res.stdout and "1.9463557" in res.stdout
     assert "need at least three sizes" in res.stdout
+    again = run_cli("sweep", "--nu", "0:0.5")  # the same command resumes the same file
+    assert again.exit_code == 0 and list(tmp_path.glob("unit_square_sweep_*.h5")) == [out]
+    other = run_cli("sweep", "--nu", "0.1,0.2")  # another grid: another file, no clash
+    assert other.exit_code == 0 and len(list(tmp_path.glob("unit_square_sweep_*.h5"))) == 2
 
 
 def test_sweep_json_prints_points_and_limits_only(tmp_path):

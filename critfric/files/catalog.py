@@ -1,0 +1,41 @@
+"""What a set of critfric files holds, one summary row per solve or sweep point."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+
+from ..errors import CaseError
+from .results import read_summary
+from .sweepfile import read_sweep
+
+
+def summaries(paths) -> tuple[list[dict], list[tuple[Path, str]]]:
+    """Rows (as ``critfric solve --json`` prints them, plus ``file``) of every solve file and
+    every point of every sweep file in ``paths``; and (path, why) for each path skipped (not a
+    critfric file, or not a valid one)."""
+    rows: list[dict] = []
+    skipped: list[tuple[Path, str]] = []
+    for path in map(Path, paths):
+        try:
+            with h5py.File(path, "r") as f:
+                kind = f.attrs.get("kind")
+        except (OSError, ValueError) as exc:
+            skipped.append((path, f"not an HDF5 file ({exc.__class__.__name__})"))
+            continue
+        try:
+            if kind == "solve":
+                rows.append({**read_summary(path), "file": str(path)})
+            elif kind == "sweep":
+                data = read_sweep(path)
+                name = str(data["attrs"].get("case_name", ""))
+                for r in data["rows"]:
+                    rows.append({"case": name, "file": str(path), "complete": True,
+                                 "warnings": [], "method": "sweep", **r})
+            else:
+                skipped.append((path, "not a critfric solve or sweep file (an export's "
+                                      "arrays, or another program's)"))
+        except CaseError as exc:
+            skipped.append((path, exc.detail))
+    return rows, skipped
