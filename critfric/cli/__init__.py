@@ -1,18 +1,40 @@
 """The command line: thin typer commands over the library's plain functions."""
 
+import os
 import sys
 
 
 def main() -> None:
     """The ``critfric`` command. Ctrl-C at any moment, start-up included, exits 130 with one
     line and no traceback."""
+    import signal
+
     try:
         from .app import app
 
         app()
     except KeyboardInterrupt:  # outside a command (start-up, option parsing)
-        sys.stderr.write("critfric: interrupted\n")
-        sys.exit(130)
+        _interrupted("critfric: interrupted")
+    except SystemExit as exc:
+        from .failures import said_interrupted
+
+        if exc.code == 130 and not said_interrupted():  # click's own silent Ctrl-C exit
+            _interrupted("critfric: interrupted")
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # the work is done: exit quietly
+        raise
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _interrupted(line: str) -> None:
+    """Say it, then leave at once: a second Ctrl-C during the interpreter's shutdown must not
+    turn into a traceback or a death by signal."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    sys.stderr.write(line + "\n")
+    sys.stderr.flush()
+    sys.stdout.flush()
+    os._exit(130)
 
 
 def __getattr__(name: str):

@@ -23,7 +23,8 @@ from ..solve import solve_case
 from .failures import reported, say
 
 app = typer.Typer(
-    add_completion=False,
+    add_completion=True,
+    rich_markup_mode=None,
     no_args_is_help=True,
     pretty_exceptions_show_locals=False,
     help="Critical friction coefficients of Coulomb frictional contact (plane strain).",
@@ -55,7 +56,7 @@ def _table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-@app.command()
+@app.command(epilog="\b\nExamples:\n  critfric solve inclined-body\n  critfric solve cases/unit_square.toml --nu 0.45 --element Q2 -o sq.h5\n  critfric solve unit-square --json > summary.json")
 def solve(
     case: str = typer.Argument(..., help="Case file (TOML) or shipped case name "
                                          "(see `critfric cases`)."),
@@ -112,7 +113,7 @@ def solve(
     typer.echo(f"critical friction coefficient: {result.critical:.10g}")
 
 
-@app.command()
+@app.command(epilog="\b\nExamples:\n  critfric cases")
 def cases() -> None:
     """List the shipped cases (usable by name: `critfric solve inclined-body`)."""
     for name, path in shipped_cases().items():
@@ -120,7 +121,7 @@ def cases() -> None:
         typer.echo(f"{name:<16} {title}")
 
 
-@app.command()
+@app.command(epilog="\b\nExamples:\n  critfric table *.h5\n  critfric table sq.h5 --json")
 def table(
     files: list[Path] = typer.Argument(..., help="Solve or sweep files (other files are "
                                        "skipped, and named)."),
@@ -131,15 +132,15 @@ def table(
 
     with reported():
         rows, skipped = summaries(files)
+        if not rows:  # nothing to show: one error naming each file and why
+            (path, why), *more = skipped
+            raise CaseError(why + "".join(f"; {p}: {w}" for p, w in more), file=str(path))
         for path, why in skipped:
             say(f"critfric: note: skipped {path}: {why}")
-        if not rows:
-            raise CaseError(f"no solve or sweep file among the {len(files)} given",
-                            key="table")
     typer.echo(json.dumps(rows) if as_json else _table(rows))
 
 
-@app.command()
+@app.command(epilog="\b\nExamples:\n  critfric sweep --nu 0:0.5\n  critfric sweep unit-square --nu 0.3 --size 0.1,0.05,0.025 --element P1,P2 -o fig5.h5\n  critfric sweep inclined-body --nu 0:0.5:21 --plot -j 2")
 def sweep(
     case: Optional[str] = typer.Argument(None, help="Case file or shipped case name "
                                                     "[default: unit-square]."),
@@ -182,7 +183,7 @@ def sweep(
             say(f"critfric: note: {note}")
         out = output or sweep_output(loaded, grid)
         with interrupt_guard() as interrupted, output_lock(out), \
-                progress_bar(enabled=not as_json and sys.stderr.isatty()) as on_point:
+                progress_bar(enabled=not as_json, terminal=sys.stderr.isatty()) as on_point:
 
             def point_done(row, done, total):  # after each point written: honour Ctrl-C
                 on_point(row, done, total)
@@ -198,7 +199,7 @@ def sweep(
         say(f"wrote {png}")
 
 
-@app.command()
+@app.command(epilog="\b\nExamples:\n  critfric plot fig5.h5\n  critfric plot inclined_body.h5")
 def plot(
     file: Path = typer.Argument(..., help="A sweep or solve file."),
     nu: Optional[float] = typer.Option(None, help="Sweep: the nu of the convergence figure "
@@ -213,7 +214,7 @@ def plot(
         typer.echo(str(png))
 
 
-@app.command()
+@app.command(epilog="\b\nExamples:\n  critfric export inclined_body.h5\n  critfric export inclined_body.h5 --format vtu -o modes.vtu")
 def export(
     file: Path = typer.Argument(..., help="A solve file."),
     fmt: str = typer.Option("xdmf", "--format", help="xdmf or vtu."),
@@ -229,7 +230,7 @@ def export(
     typer.echo(str(path))
 
 
-@app.command()
+@app.command(epilog="\b\nExamples:\n  critfric solutions one-triangle --friction 1:3:11")
 def solutions(
     case: str = typer.Argument(..., help="Case file or shipped case name; its [load] is used."),
     friction: str = typer.Option(..., "--friction", help="Friction values: a:b:N (N values "
@@ -255,7 +256,7 @@ def solutions(
         say(f"wrote {png}")
 
 
-@app.command()
+@app.command(epilog="\b\nExamples:\n  critfric verify inclined-body\n  critfric verify unit-square --element P2 --json")
 def verify(
     case: str = typer.Argument(..., help="Case file or shipped case name."),
     nu: Optional[float] = typer.Option(None, help="Poisson ratio, overrides [material] nu."),

@@ -15,6 +15,12 @@ import typer
 from ..errors import CritfricError
 
 INTERRUPTED = 130  # the shell's code for a process ended by SIGINT
+_SAID = {"interrupted": False}
+
+
+def said_interrupted() -> bool:
+    """Whether a command already said it was interrupted."""
+    return _SAID["interrupted"]
 
 
 def say(message: str) -> None:
@@ -35,4 +41,5 @@ def reported(kept: str = "nothing was written") -> Iterator[None]:
         raise typer.Exit(exc.exit_code) from None
     except KeyboardInterrupt:  # typer would exit 130 without a word
         say(f"critfric: interrupted: {kept}")
+        _SAID["interrupted"] = True
         raise typer.Exit(INTERRUPTED) from None

@@ -22,7 +22,8 @@ def summaries(paths) -> tuple[list[dict], list[tuple[Path, str]]]:
             with h5py.File(path, "r") as f:
                 kind = f.attrs.get("kind")
         except (OSError, ValueError) as exc:
-            skipped.append((path, f"not an HDF5 file ({exc.__class__.__name__})"))
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else "not HDF5"
+            skipped.append((path, f"cannot read this file ({reason})"))
             continue
         try:
             if kind == "solve":

@@ -92,3 +92,23 @@ def test_bad_case_files_exit_2_and_write_nothing(tmp_path, name):
 def test_cases_lists_shipped_names():
     res = run_cli("cases")
     assert res.exit_code == 0 and "inclined-body" in res.stdout
+
+
+@pytest.mark.parametrize("command", ["solve", "cases", "table", "sweep", "plot", "export",
+                                     "solutions", "verify"])
+def test_help_is_plain_text_with_literal_brackets_and_examples(command):
+    res = run_cli(command, "--help")
+    assert res.exit_code == 0
+    text = res.output
+    assert "Examples:" in text and f"critfric {command}" in text
+    assert not set("╭╮╰╯│─") & set(text)  # no boxes: readable in a log or a dumb terminal
+    if command == "solve":
+        assert "[material] nu" in text and "[default: what" in text
+
+
+def test_a_sweep_logged_to_a_file_says_each_point(tmp_path):
+    res = run_cli("sweep", "four-triangles", "--nu", "0.1:0.3:3", "-o", tmp_path / "s.h5",
+                  "-j", "1")
+    assert res.exit_code == 0
+    lines = [line for line in res.stderr.splitlines() if "critfric: sweep: point" in line]
+    assert len(lines) == 3 and "3/3" in lines[-1] and "elapsed" in lines[-1]

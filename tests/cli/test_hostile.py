@@ -407,7 +407,7 @@ def test_an_address_space_cap_is_exit_2_with_the_estimate(tmp_path):
     assert "Traceback" not in proc.stderr and not (tmp_path / "r.h5").exists()
 
 
-@pytest.mark.parametrize("delay", [0.05, 0.15, 0.3])
+@pytest.mark.parametrize("delay", [0.05, 0.15, 0.25, 0.3, 0.35, 0.45, 0.6])
 def test_ctrl_c_at_any_moment_of_start_up_is_130_without_traceback(tmp_path, delay):
     from helpers import cli_process
 
@@ -418,7 +418,7 @@ def test_ctrl_c_at_any_moment_of_start_up_is_130_without_traceback(tmp_path, del
     err = proc.communicate(timeout=60)[1]
     assert proc.returncode in (0, 130) and "Traceback" not in err, err
     if proc.returncode == 130:
-        assert err.strip().splitlines()[-1].startswith("critfric: interrupted")
+        assert err.count("critfric: interrupted") == 1 and err.count("\n") == 1, err
         assert not (tmp_path / "r.h5").exists()
 
 
