@@ -18,20 +18,21 @@ def main() -> None:
     except SystemExit as exc:
         from .failures import said_interrupted
 
-        if exc.code == 130 and not said_interrupted():  # click's own silent Ctrl-C exit
-            _interrupted("critfric: interrupted")
+        if exc.code == 130:  # typer's own silent Ctrl-C exit, or a command's
+            _interrupted(None if said_interrupted() else "critfric: interrupted")
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # the work is done: exit quietly
         raise
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _interrupted(line: str) -> None:
-    """Say it, then leave at once: a second Ctrl-C during the interpreter's shutdown must not
-    turn into a traceback or a death by signal."""
+def _interrupted(line: str | None) -> None:
+    """Say it (unless a command did), then leave at once: a second Ctrl-C during the
+    interpreter's shutdown must not turn into a traceback or a death by signal."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    sys.stderr.write(line + "\n")
+    if line:
+        sys.stderr.write(line + "\n")
     sys.stderr.flush()
     sys.stdout.flush()
     os._exit(130)

@@ -80,7 +80,7 @@ def solve(
              "method": method, "backend": backend,
              "output": str(output) if output is not None else None}
     overrides = {OVERRIDES[k]: v for k, v in given.items() if v is not None}
-    with reported("no result written (an existing file is unchanged)"):
+    with reported("no result written (an existing file is unchanged)") as ending:
         loaded = load_case(case, overrides=overrides)
         path = check_output(default_output(loaded), force=force, inputs=loaded.inputs())
         with interrupt_guard() as interrupted, output_lock(path):
@@ -88,29 +88,30 @@ def solve(
             result = solve_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo)
             interrupted.check()  # a Ctrl-C that Python swallowed: still nothing written
             write_result(result, path, force=force)
+        ending.kept = f"the result is written to {path}"
         if plot:
             from ..plots.figures import plot_file
 
             for png in plot_file(path):
                 say(f"wrote {png}")
-    for note in result.notes:
-        say(f"critfric: note: {note}")
-    for warning in result.warnings:
-        say(f"critfric: warning: {warning}")
-    summary = result.summary()
-    if as_json:
-        typer.echo(json.dumps(summary))
-        return
-    say(f"wrote {path}")
-    typer.echo(f"case      {loaded.title or loaded.name} ({loaded.source})")
-    typer.echo(f"mesh      {result.element}, h = {result.h:.4g}, {result.n_dofs} DOFs, "
-               f"{result.n_contact} contact nodes")
-    typer.echo(f"nu        {result.nu:g}   solver {result.solver}   "
-               f"{result.seconds:.2f} s")
-    typer.echo(f"positive  {_fmt(result.positive)}")
-    typer.echo(f"negative  {_fmt(result.negative)}")
-    typer.echo(f"complex   {result.complex_count}")
-    typer.echo(f"critical friction coefficient: {result.critical:.10g}")
+        for note in result.notes:
+            say(f"critfric: note: {note}")
+        for warning in result.warnings:
+            say(f"critfric: warning: {warning}")
+        summary = result.summary()
+        if as_json:
+            typer.echo(json.dumps(summary))
+            return
+        say(f"wrote {path}")
+        typer.echo(f"case      {loaded.title or loaded.name} ({loaded.source})")
+        typer.echo(f"mesh      {result.element}, h = {result.h:.4g}, {result.n_dofs} DOFs, "
+                   f"{result.n_contact} contact nodes")
+        typer.echo(f"nu        {result.nu:g}   solver {result.solver}   "
+                   f"{result.seconds:.2f} s")
+        typer.echo(f"positive  {_fmt(result.positive)}")
+        typer.echo(f"negative  {_fmt(result.negative)}")
+        typer.echo(f"complex   {result.complex_count}")
+        typer.echo(f"critical friction coefficient: {result.critical:.10g}")
 
 
 @app.command(epilog="\b\nExamples:\n  critfric cases")
@@ -137,7 +138,7 @@ def table(
             raise CaseError(why + "".join(f"; {p}: {w}" for p, w in more), file=str(path))
         for path, why in skipped:
             say(f"critfric: note: skipped {path}: {why}")
-    typer.echo(json.dumps(rows) if as_json else _table(rows))
+        typer.echo(json.dumps(rows) if as_json else _table(rows))
 
 
 @app.command(epilog="\b\nExamples:\n  critfric sweep --nu 0:0.5\n  critfric sweep unit-square --nu 0.3 --size 0.1,0.05,0.025 --element P1,P2 -o fig5.h5\n  critfric sweep inclined-body --nu 0:0.5:21 --plot -j 2")
@@ -168,13 +169,13 @@ def sweep(
     trust_geo: TrustGeo = False,
 ) -> None:
     """Sweep nu, mesh size and element; resumable; h -> 0 limits by Richardson extrapolation."""
-    from ..plots.figures import plot_file
-    from ..sweep.runner import default_output as sweep_output
-    from ..sweep.runner import make_grid, report_sweep, run_sweep
-    from .progress import progress_bar
-
     with reported("every finished point is kept in the sweep file; run the same command "
                   "again to compute only the rest"):
+        from ..plots.figures import plot_file
+        from ..sweep.runner import default_output as sweep_output
+        from ..sweep.runner import make_grid, report_sweep, run_sweep
+        from .progress import progress_bar
+
         loaded = load_case(case or "unit-square",
                            overrides={"mesh.grading": grading, "solve.count": count})
         grid = make_grid(loaded, nu=nu, size=size, element=element, max_dofs=max_dofs,
@@ -193,10 +194,10 @@ def sweep(
                                force=force, on_point=point_done, max_dofs=max_dofs,
                                trust_geo=trust_geo)
         pngs = plot_file(result.path) if plot else []
-    typer.echo(json.dumps(result.summary()) if as_json else report_sweep(result))
-    say(f"wrote {out}")
-    for png in pngs:
-        say(f"wrote {png}")
+        typer.echo(json.dumps(result.summary()) if as_json else report_sweep(result))
+        say(f"wrote {out}")
+        for png in pngs:
+            say(f"wrote {png}")
 
 
 @app.command(epilog="\b\nExamples:\n  critfric plot fig5.h5\n  critfric plot inclined_body.h5")
@@ -206,12 +207,11 @@ def plot(
                                        "[default: the middle one]."),
 ) -> None:
     """Write the figures (PNG) of a sweep or solve file next to it."""
-    from ..plots.figures import plot_file
+    with reported("the figures already written are kept"):
+        from ..plots.figures import plot_file
 
-    with reported():
-        pngs = plot_file(file, nu=nu)
-    for png in pngs:
-        typer.echo(str(png))
+        for png in plot_file(file, nu=nu):
+            typer.echo(str(png))
 
 
 @app.command(epilog="\b\nExamples:\n  critfric export inclined_body.h5\n  critfric export inclined_body.h5 --format vtu -o modes.vtu")
@@ -223,11 +223,10 @@ def export(
     force: bool = typer.Option(False, "--force", help="Overwrite an existing export."),
 ) -> None:
     """Export the mesh and the critical modes (Phi, stress, von Mises) for ParaView."""
-    from ..files.export import export_file
-
     with reported():
-        path = export_file(file, fmt=fmt, output=output, force=force)
-    typer.echo(str(path))
+        from ..files.export import export_file
+
+        typer.echo(str(export_file(file, fmt=fmt, output=output, force=force)))
 
 
 @app.command(epilog="\b\nExamples:\n  critfric solutions one-triangle --friction 1:3:11")
@@ -243,17 +242,18 @@ def solutions(
 ) -> None:
     """Every solution of the static Coulomb problem (2.8) of a small case (p <= 8 contact
     nodes), by enumeration, over a range of friction values."""
-    from ..multiplicity.enumeration import parse_frictions, report_solutions, solutions_of_case
-    from ..plots.static import default_plot, solutions_plot
-
     with reported():
+        from ..multiplicity.enumeration import parse_frictions, report_solutions, solutions_of_case
+        from ..plots.static import default_plot, solutions_plot
+
         loaded = load_case(case, overrides={"material.nu": nu})
         sweep = solutions_of_case(loaded, parse_frictions(friction))
         png = None if no_plot else solutions_plot(
             sweep, plot or default_plot(loaded, "solutions"), title=loaded.title or "")
-    typer.echo(json.dumps([e.to_json() for e in sweep]) if as_json else report_solutions(sweep))
-    if png:
-        say(f"wrote {png}")
+        typer.echo(json.dumps([e.to_json() for e in sweep]) if as_json
+                   else report_solutions(sweep))
+        if png:
+            say(f"wrote {png}")
 
 
 @app.command(epilog="\b\nExamples:\n  critfric verify inclined-body\n  critfric verify unit-square --element P2 --json")
@@ -270,18 +270,18 @@ def verify(
 ) -> None:
     """Check the explicit non-uniqueness example of section 5 at the critical coefficient:
     a whole branch u + delta Phi of solutions. Exit code 1 if the check fails."""
-    from ..multiplicity.verify import report_verification
-    from ..multiplicity.verify import verify as run_verify
-    from ..plots.static import branch_plot, default_plot
-
     given = {"nu": nu, "element": element, "size": size}
     with reported():
+        from ..multiplicity.verify import report_verification
+        from ..multiplicity.verify import verify as run_verify
+        from ..plots.static import branch_plot, default_plot
+
         loaded = load_case(case, overrides={OVERRIDES[k]: v for k, v in given.items()})
         result = run_verify(loaded, off=off)
         png = None if no_plot else branch_plot(result, plot or default_plot(loaded, "verify"))
-    typer.echo(json.dumps(result.summary()) if as_json else report_verification(result))
-    if png:
-        say(f"wrote {png}")
+        typer.echo(json.dumps(result.summary()) if as_json else report_verification(result))
+        if png:
+            say(f"wrote {png}")
     if not result.passed:
         raise typer.Exit(1)
 

@@ -28,18 +28,28 @@ def say(message: str) -> None:
     typer.echo(message, err=True)
 
 
-@contextmanager
-def reported(kept: str = "nothing was written") -> Iterator[None]:
-    """Run a command's body; turn its failures into a message and an exit code.
+class Ending:
+    """What a Ctrl-C now would leave behind; a command updates ``kept`` as it writes."""
 
-    kept: what an interruption leaves behind, said after ``critfric: interrupted:``.
+    def __init__(self, kept: str):
+        self.kept = kept
+
+
+@contextmanager
+def reported(kept: str = "nothing was written") -> Iterator[Ending]:
+    """Run a command's body (all of it, its printing included); turn its failures into a
+    message and an exit code.
+
+    kept: what an interruption leaves behind, said after ``critfric: interrupted:``; the
+    body can change it (``ending.kept = ...``) once it has written something.
     """
+    ending = Ending(kept)
     try:
-        yield
+        yield ending
     except CritfricError as exc:
         say(f"critfric: error: {exc}")
         raise typer.Exit(exc.exit_code) from None
     except KeyboardInterrupt:  # typer would exit 130 without a word
-        say(f"critfric: interrupted: {kept}")
+        say(f"critfric: interrupted: {ending.kept}")
         _SAID["interrupted"] = True
         raise typer.Exit(INTERRUPTED) from None

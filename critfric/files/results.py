@@ -32,8 +32,7 @@ from ..errors import CaseError
 from ..solvers.eigen import INFINITE_TOL, RESIDUAL_TOL
 from . import validate
 from .safety import atomic_h5, check_output
-
-SCHEMA_VERSION = 1
+from .validate import SCHEMA_VERSION  # noqa: E402  (one number for both kinds)
 
 
 def default_output(case) -> Path:
@@ -83,7 +82,33 @@ def write_result(result, path: Path | str, *, force: bool = False) -> Path:
         for name, facets in mesh.edges.items():
             f[f"mesh/edges/{name}"] = facets
 
-    return atomic_h5(path, fill)
+    def described(f: h5py.File) -> None:
+        fill(f)
+        f.visititems(_describe)
+
+    return atomic_h5(path, described)
+
+
+#: units and long names of a solve file's datasets, by the last part of their path
+DESCRIPTIONS = {
+    "alpha": ("1", "every finite eigenvalue of (3.2), complex, by modulus"),
+    "positive": ("1", "positive critical friction coefficients, ascending"),
+    "negative": ("1", "negative critical coefficients (|alpha| for the opposite slip)"),
+    "points": ("length unit of the case", "node coordinates (x, y)"),
+    "cells": ("1", "node indices of each cell, gmsh local order"),
+    "contact_nodes": ("1", "node indices of the contact nodes, along the tangent"),
+    "phi": ("1", "eigenfunction Phi at the nodes (x, y), max |Phi| = 1"),
+    "theta_n": ("force unit", "nodal normal contact force X = F(theta_n) of the mode"),
+    "theta_t": ("force unit", "nodal tangential contact force Y = F(theta_t) of the mode"),
+}
+
+
+def _describe(name: str, obj) -> None:
+    if isinstance(obj, h5py.Dataset):
+        leaf = name.rsplit("/", 1)[-1]
+        units, long_name = DESCRIPTIONS.get(leaf, ("1", f"node indices of the facets of "
+                                                        f"boundary edge {leaf!r}"))
+        obj.attrs.update({"units": units, "long_name": long_name})
 
 
 def file_attrs(f: h5py.File, kind: str, path: Path) -> dict:

@@ -38,8 +38,8 @@ from .._version import __version__
 from ..errors import CaseError, WriteError
 from .results import file_attrs
 from .safety import atomic_h5, check_output
+from .validate import SCHEMA_VERSION  # noqa: E402  (one number for both kinds)
 
-SCHEMA_VERSION = 1
 STR = h5py.string_dtype()
 FLOAT_COLUMNS = ("nu", "size", "h", "seconds")
 INT_COLUMNS = ("n_dofs", "n_contact", "complex_count")
@@ -164,8 +164,10 @@ def read_sweep(path: Path) -> dict:
     return {"attrs": attrs, "rows": rows, "limits": limits}
 
 
-def write_limits(path: Path, limits) -> None:
-    """Replace the /limits table (atomic)."""
+def write_limits(path: Path, limits, grid=None, rows=None) -> None:
+    """Replace the /limits table and, given the ``grid`` and its ``rows`` in grid order, the
+    gridded view at the root (atomic): netCDF-4 style variables over named dimensions, so
+    that ``xarray.open_dataset(path, engine="h5netcdf")`` reads the sweep as it was asked."""
     with _rewrite(Path(path)) as f:
         if "limits" in f:
             del f["limits"]
@@ -176,6 +178,58 @@ def write_limits(path: Path, limits) -> None:
         g["n_sizes"] = np.array([d["n_sizes"] for d in data], dtype=np.int64)
         for name in ("element", "family", "status"):
             g.create_dataset(name, data=[d[name] for d in data], dtype=STR)
+        if grid is not None and rows is not None:
+            _write_grid(f, grid, rows)
+
+
+#: the gridded view: name -> (dimensions, units, long name)
+GRID_VARIABLES = {
+    "positive": (("element", "size", "nu", "rank"), "1",
+                 "lowest positive critical friction coefficients (NaN: none)"),
+    "negative": (("element", "size", "nu", "rank"), "1",
+                 "negative critical coefficients, by modulus (NaN: none)"),
+    "h": (("element", "size", "nu"), "length unit of the case", "largest cell diameter"),
+    "n_dofs": (("element", "size", "nu"), "1", "free degrees of freedom"),
+    "n_contact": (("element", "size", "nu"), "1", "contact nodes"),
+    "seconds": (("element", "size", "nu"), "s", "wall time of the point"),
+    "status": (("element", "size", "nu"), "", "ok, no-real-eigenvalue or failed: ..."),
+}
+COORDINATES = {"nu": ("1", "Poisson ratio"), "size": ("length unit of the case",
+                                                      "target mesh size (NaN: inline mesh)"),
+               "element": ("", "finite element"), "rank": ("1", "rank in the family, lowest 0")}
+
+
+def _write_grid(f: h5py.File, grid, rows: list[dict]) -> None:
+    for name in list(GRID_VARIABLES) + list(COORDINATES):
+        if name in f:
+            del f[name]
+    count = f["points/positive"].shape[1]
+    values = {"nu": np.asarray(grid.nu, dtype=np.float64),
+              "size": np.array([math.nan if s is None else s for s in grid.size]),
+              "element": np.array(grid.element, dtype=object),
+              "rank": np.arange(count, dtype=np.int64)}
+    shape = (len(grid.element), len(grid.size), len(grid.nu))
+    for name, v in values.items():
+        ds = f.create_dataset(name, data=v, dtype=STR if name == "element" else v.dtype)
+        ds.make_scale(name)
+        ds.attrs.update({"units": COORDINATES[name][0], "long_name": COORDINATES[name][1]})
+    data = {}
+    for name in GRID_VARIABLES:
+        dims = GRID_VARIABLES[name][0]
+        full = shape + ((count,) if "rank" in dims else ())
+        data[name] = np.full(full, "" if name == "status" else math.nan,
+                             dtype=object if name == "status" else np.float64)
+    for i, row in enumerate(rows):  # rows in grid order: element, size, nu
+        at = np.unravel_index(i, shape)
+        for name in ("h", "n_dofs", "n_contact", "seconds", "status"):
+            data[name][at] = math.nan if row[name] is None else row[name]
+        for name in ("positive", "negative"):
+            data[name][at][: len(row[name][:count])] = row[name][:count]
+    for name, (dims, units, long_name) in GRID_VARIABLES.items():
+        ds = f.create_dataset(name, data=data[name], dtype=STR if name == "status" else None)
+        ds.attrs.update({"units": units, "long_name": long_name})
+        for axis, dim in enumerate(dims):
+            ds.dims[axis].attach_scale(f[dim])
 
 
 def _read_table(g) -> list[dict]:

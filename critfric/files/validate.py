@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import CaseError
 from ..fem.elements import NAMES, get_element
 
+SCHEMA_VERSION = 2  # the newest file layout this version reads (and writes)
 SLACK_BYTES = 1 << 20  # a dataset may declare at most 4 x the file's size plus this
 
 # root attributes: name -> kind ("int", "float", "str", "json", "element")
@@ -32,6 +33,10 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
         return CaseError(f"{where}: {what}; not a valid critfric {kind} file (was it "
                          "written by critfric, and is it whole?)", file=str(path))
 
+    version = f.attrs.get("schema_version")
+    if not _attr_ok(version, "int") or not 1 <= int(version) <= SCHEMA_VERSION:
+        raise bad("attribute 'schema_version'", f"{version!r}; this critfric reads versions 1 "
+                  f"to {SCHEMA_VERSION} (a newer critfric wrote it?)")
     for name, want in (SOLVE_ATTRS if kind == "solve" else SWEEP_ATTRS).items():
         if not _attr_ok(f.attrs.get(name), want):
             raise bad(f"attribute {name!r}", f"missing or not {want}")

@@ -174,7 +174,7 @@ def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = 
     stored = {sweepfile.row_key(r): r for r in sweepfile.read_sweep(path)["rows"]}
     rows = [stored[p.key] for p in points]
     limits = limits_of(rows)
-    sweepfile.write_limits(path, limits)
+    sweepfile.write_limits(path, limits, grid, rows)
     return Sweep(path, grid, rows, limits, len(todo), time.perf_counter() - t0)
 
 

@@ -150,3 +150,28 @@ def test_export_refuses_to_overwrite_its_input(tmp_path):
     assert res.exit_code == 2 and "overwrite the input" in res.stderr
     assert run_cli("export", out, "--format", "stl").exit_code == 2
     assert run_cli("plot", tmp_path / "missing.h5").exit_code == 2
+
+
+def test_a_sweep_file_opens_in_xarray_with_named_dimensions_and_units(tmp_path):
+    xr = pytest.importorskip("xarray")
+    pytest.importorskip("h5netcdf")
+    out = tmp_path / "s.h5"
+    res = run_cli("sweep", "four-triangles", "--nu", "0.3,0.1,0.2", "-o", out, "-j", "2")
+    assert res.exit_code == 0, res.output
+    with xr.open_dataset(out, engine="h5netcdf") as ds:
+        assert ds.positive.dims == ("element", "size", "nu", "rank")
+        assert list(ds.nu.values) == [0.1, 0.2, 0.3]  # grid order, whatever the finishing order
+        assert ds.positive.attrs["units"] == "1" and "friction" in ds.positive.attrs["long_name"]
+        got = ds.positive.sel(element="P1", nu=0.3).values.ravel()[0]
+        assert got == pytest.approx(four_triangles_alpha(0.3), rel=1e-10)
+        assert set(ds.status.values.ravel()) == {"ok"}
+
+
+def test_solve_file_datasets_carry_units_and_long_names(tmp_path):
+    import h5py
+
+    assert run_cli("solve", "one-triangle", "-o", tmp_path / "r.h5").exit_code == 0
+    with h5py.File(tmp_path / "r.h5") as f:
+        names = []
+        f.visititems(lambda n, o: names.append(n) if isinstance(o, h5py.Dataset) else None)
+        assert names and all("units" in f[n].attrs and f[n].attrs["long_name"] for n in names)
