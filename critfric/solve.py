@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from .case.schema import Case, load_case
+from .case.schema import Case, from_dict, load_case
 from .errors import CaseError
 from .fem.assembly import assemble_elasticity, lame
 from .fem.contact import ContactSystem, check_held, contact_system
@@ -37,6 +37,10 @@ class Prepared:
     system: ContactSystem
     seconds: dict[str, float]
     made_from: dict = field(default_factory=dict)  # the case sections that made the mesh
+
+    def __repr__(self) -> str:
+        return (f"Prepared({self.mesh!r}, {self.system.n_dofs} DOFs, "
+                f"{self.system.n_contact} contact nodes)")
 
     def check_case(self, case: Case) -> None:
         """Refuse a case whose geometry, mesh or boundary differ from the ones this was
@@ -79,6 +83,12 @@ class Result:
     @property
     def n_contact(self) -> int:
         return len(self.contact_nodes)
+
+    def __repr__(self) -> str:
+        lowest = lambda v: f"{v[0]:.10g}" if len(v) else "none"  # noqa: E731
+        return (f"Result({self.case.name!r}, {self.element}, nu={self.nu:g}, "
+                f"h={self.h:.4g}, n_dofs={self.n_dofs}, critical={lowest(self.positive)}, "
+                f"lowest negative={lowest(self.negative)}, {len(self.alpha)} eigenvalues)")
 
     @property
     def complex_count(self) -> int:
@@ -243,10 +253,15 @@ def solve_prepared(prep: Prepared, case: Case) -> Result:
     )
 
 
-def solve_case(case: Case | str | Path, *, overrides: dict[str, Any] | None = None,
+def solve_case(case: Case | dict | str | Path, *, overrides: dict[str, Any] | None = None,
                max_dofs: int | None = None, trust_geo: bool = False) -> Result:
-    """Load (if needed), mesh, assemble and solve a case; return its :class:`Result`."""
-    if not isinstance(case, Case):
+    """Load (if needed), mesh, assemble and solve a case; return its :class:`Result`.
+
+    case: a :class:`Case`, a case file path, a shipped case name ("unit-square"), or a dict
+    of sections as in a case file ({"geometry": {"shape": "square"}, ...})."""
+    if isinstance(case, dict):
+        case = from_dict(case, overrides=overrides)
+    elif not isinstance(case, Case):
         case = load_case(case, overrides=overrides)
     elif overrides:
         case = case.with_overrides(overrides)

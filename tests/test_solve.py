@@ -44,3 +44,28 @@ def test_coefficients_do_not_depend_on_the_length_unit(scale):
     np.testing.assert_allclose(got.positive[:2], ref.positive[:2], rtol=1e-10)
     np.testing.assert_allclose(got.negative[:2], ref.negative[:2], rtol=1e-10)
     assert got.h == pytest.approx(scale * ref.h, rel=1e-12)
+
+
+def test_the_python_api_takes_any_form_of_a_case_and_prints_short():
+    as_dict = {"geometry": {"shape": "square"}, "mesh": {"size": 0.25}}
+    by_dict = critfric.solve_case(as_dict)
+    by_name = critfric.solve_case("unit-square", overrides={"mesh.size": 0.25})
+    by_case = critfric.solve_case(loads_case(square_case(size=0.25)))
+    assert by_dict.critical == pytest.approx(by_name.critical, rel=1e-12)
+    assert by_case.critical == pytest.approx(by_name.critical, rel=1e-12)
+    for obj in (by_dict, by_dict.mesh, critfric.prepare(loads_case(square_case(size=0.25)))):
+        text = repr(obj)
+        assert len(text) < 200 and "array(" not in text, text
+    assert "critical=1.9" in repr(by_dict)
+
+
+def test_a_sweep_is_a_table(tmp_path):
+    pd = pytest.importorskip("pandas")
+    from critfric.sweep import make_grid, run_sweep
+
+    case = critfric.load_case("four-triangles")
+    sweep = run_sweep(case, make_grid(case, nu="0.1,0.3"), output=tmp_path / "s.h5", jobs=1)
+    frame = sweep.to_dataframe()
+    assert isinstance(frame, pd.DataFrame) and list(frame["nu"]) == [0.1, 0.3]
+    assert frame["positive"].iloc[1] == pytest.approx(1.8358568491, rel=1e-9)
+    assert "2 points" in repr(sweep)

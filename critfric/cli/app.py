@@ -20,7 +20,7 @@ from ..fem.elements import NAMES
 from ..files.results import default_output, write_result
 from ..files.safety import check_output, interrupt_guard, output_lock
 from ..solve import solve_case
-from .failures import reported, say
+from .failures import reported, say, set_verbosity, verbosity
 
 app = typer.Typer(
     add_completion=True,
@@ -98,6 +98,9 @@ def solve(
             say(f"critfric: note: {note}")
         for warning in result.warnings:
             say(f"critfric: warning: {warning}")
+        stages = ", ".join(f"{k} {v:.3f} s" for k, v in result.timings.items())
+        say(f"critfric: stages: {stages}; solver {result.solver}, backend {result.backend}",
+            level=2)
         summary = result.summary()
         if as_json:
             typer.echo(json.dumps(summary))
@@ -184,7 +187,8 @@ def sweep(
             say(f"critfric: note: {note}")
         out = output or sweep_output(loaded, grid)
         with interrupt_guard() as interrupted, output_lock(out), \
-                progress_bar(enabled=not as_json, terminal=sys.stderr.isatty()) as on_point:
+                progress_bar(enabled=not as_json and verbosity() > 0,
+                             terminal=sys.stderr.isatty()) as on_point:
 
             def point_done(row, done, total):  # after each point written: honour Ctrl-C
                 on_point(row, done, total)
@@ -296,5 +300,10 @@ def version_callback(value: bool) -> None:
 def main_callback(
     version: bool = typer.Option(False, "--version", callback=version_callback,
                                  is_eager=True, help="Print the version and exit."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Print only errors on stderr "
+                               "(no notes, progress or names of written files)."),
+    verbose: bool = typer.Option(False, "--verbose", "-v", help="Also print the time of "
+                                 "each stage and how the eigen search went."),
 ) -> None:
     """critfric: critical friction coefficients (Hassani, Hild, Ionescu, Sakki 2003)."""
+    set_verbosity(0 if quiet else 2 if verbose else 1)

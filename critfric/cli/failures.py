@@ -23,9 +23,21 @@ def said_interrupted() -> bool:
     return _SAID["interrupted"]
 
 
-def say(message: str) -> None:
-    """One line on stderr (messages, notes, warnings, written files)."""
-    typer.echo(message, err=True)
+_VERBOSITY = {"level": 1}  # 0: errors only (-q), 1: notes and written files, 2: timings (-v)
+
+
+def set_verbosity(level: int) -> None:
+    _VERBOSITY["level"] = level
+
+
+def verbosity() -> int:
+    return _VERBOSITY["level"]
+
+
+def say(message: str, level: int = 1) -> None:
+    """One line on stderr (notes, warnings, written files), if the verbosity asks for it."""
+    if level <= _VERBOSITY["level"]:
+        typer.echo(message, err=True)
 
 
 class Ending:
@@ -47,9 +59,9 @@ def reported(kept: str = "nothing was written") -> Iterator[Ending]:
     try:
         yield ending
     except CritfricError as exc:
-        say(f"critfric: error: {exc}")
+        say(f"critfric: error: {exc}", level=0)
         raise typer.Exit(exc.exit_code) from None
     except KeyboardInterrupt:  # typer would exit 130 without a word
-        say(f"critfric: interrupted: {ending.kept}")
+        say(f"critfric: interrupted: {ending.kept}", level=0)
         _SAID["interrupted"] = True
         raise typer.Exit(INTERRUPTED) from None

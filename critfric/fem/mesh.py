@@ -35,6 +35,10 @@ class Mesh:
     def n_cells(self) -> int:
         return len(self.cells)
 
+    def __repr__(self) -> str:
+        return (f"Mesh({self.element}, {self.n_nodes} nodes, {self.n_cells} cells, edges "
+                f"{sorted(self.edges)})")
+
     @property
     def diameter(self) -> float:
         """h: the largest cell diameter (longest distance between two vertices of a cell)."""

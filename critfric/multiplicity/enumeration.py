@@ -208,7 +208,8 @@ class Enumerator:
             if near.any():  # rank-revealing SVD, for the few combinations near a critical value
                 U, sv, Vt = np.linalg.svd(A[near])
                 rank = np.sum(sv > RANK_TOL * sv[:, :1], axis=1)
-                inv = np.where(np.arange(2 * self.p) < rank[:, None], 1.0 / sv, 0.0)
+                kept = np.arange(2 * self.p) < rank[:, None]
+                inv = np.divide(1.0, sv, out=np.zeros_like(sv), where=kept)
                 c = inv * np.matmul(U.transpose(0, 2, 1), b[near][..., None])[..., 0]
                 z[near] = np.matmul(Vt.transpose(0, 2, 1), c[..., None])[..., 0]
                 for k, i in enumerate(np.flatnonzero(near)):

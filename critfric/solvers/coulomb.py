@@ -214,8 +214,8 @@ def violations(Un, Ut, X, Y, reference, friction, *, force_scale, disp_scale) ->
     return {
         "X<=0": np.maximum(X, 0).max(-1) / F,
         "Un<=0": np.maximum(Un, 0).max(-1) / D,
-        "X.Un=0": np.abs(X * Un).max(-1) / (F * D),
+        "X.Un=0": (np.abs(X) / F * np.abs(Un) / D).max(-1),  # no F * D: it may underflow
         "|Y|<=-fX": np.maximum(-gap, 0).max(-1) / F,
-        "Y.w<=0": np.maximum(Y * w, 0).max(-1) / (F * D),
+        "Y.w<=0": np.maximum(Y / F * (w / D), 0).max(-1),
         "stick": np.minimum(np.maximum(gap, 0) / F, np.abs(w) / D).max(-1),
     }

@@ -108,6 +108,26 @@ class Sweep:
         points = [{k: _json_value(r[k]) for k in keys} for r in self.rows]
         return {"points": points, "limits": [lim.to_json() for lim in self.limits]}
 
+    def to_dataframe(self):
+        """The points as a pandas DataFrame (one row a point, grid order; ``positive`` and
+        ``negative`` hold the lowest coefficient of each family, NaN if none). Needs pandas;
+        ``xarray.open_dataset(sweep.path, engine="h5netcdf")`` gives the gridded view."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("Sweep.to_dataframe needs pandas: pip install pandas; "
+                              "Sweep.summary()['points'] is the same table as plain data") from None
+        table = self.summary()["points"]
+        for row in table:
+            for family in ("positive", "negative"):
+                row[family] = row[family][0] if row[family] else math.nan
+        return pd.DataFrame(table)
+
+    def __repr__(self) -> str:
+        ok = sum(r["status"] == "ok" for r in self.rows)
+        return (f"Sweep({str(self.path)!r}, {len(self.rows)} points ({ok} ok, {self.computed} "
+                f"computed now), {len(self.limits)} limits)")
+
 
 def _json_value(v):
     if isinstance(v, float) and not math.isfinite(v):

@@ -112,3 +112,14 @@ def test_a_sweep_logged_to_a_file_says_each_point(tmp_path):
     assert res.exit_code == 0
     lines = [line for line in res.stderr.splitlines() if "critfric: sweep: point" in line]
     assert len(lines) == 3 and "3/3" in lines[-1] and "elapsed" in lines[-1]
+
+
+def test_quiet_and_verbose(tmp_path):
+    loud = run_cli("-v", "solve", "one-triangle", "-o", tmp_path / "a.h5")
+    assert loud.exit_code == 0 and "critfric: stages: mesh" in loud.stderr
+    quiet = run_cli("-q", "solve", "one-triangle", "-o", tmp_path / "b.h5")
+    assert quiet.exit_code == 0 and quiet.stderr == "" and "1.8" in quiet.stdout
+    error = run_cli("-q", "solve", "no-such-case")
+    assert error.exit_code == 2 and error.stderr.startswith("critfric: error:")
+    normal = run_cli("solve", "one-triangle", "-o", tmp_path / "c.h5")
+    assert "wrote" in normal.stderr and "stages" not in normal.stderr

@@ -120,3 +120,15 @@ def test_limits_and_bad_ranges():
             parse_frictions(bad)
         assert err.value.key == "--friction" and "a:b:N" in str(err.value)
     np.testing.assert_allclose(parse_frictions("0:1:3"), [0, 0.5, 1])
+
+
+def test_enumeration_of_an_unloaded_case_raises_no_warning():
+    """Zero load: every scale is zero; the checks must not divide 0 by 0."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for name in ("four_triangles", "one_triangle"):
+            out = enumerate_solutions(static_problem(critfric.load_case(CASES / f"{name}.toml")),
+                                      [0.5, 1.8, 2.5])
+            assert len(out) == 3
