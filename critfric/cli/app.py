@@ -204,18 +204,20 @@ def sweep(
             say(f"wrote {png}")
 
 
-@app.command(epilog="\b\nExamples:\n  critfric plot fig5.h5\n  critfric plot inclined_body.h5")
+@app.command(epilog="\b\nExamples:\n  critfric plot fig5.h5\n  critfric plot inclined_body.h5 --format png,pdf")
 def plot(
     file: Path = typer.Argument(..., help="A sweep or solve file."),
     nu: Optional[float] = typer.Option(None, help="Sweep: the nu of the convergence figure "
                                        "[default: the middle one]."),
+    fmt: str = typer.Option("png", "--format", help="Comma list of png, pdf, svg."),
 ) -> None:
-    """Write the figures (PNG) of a sweep or solve file next to it."""
+    """Write the figures of a sweep or solve file next to it (PNG by default)."""
     with reported("the figures already written are kept"):
         from ..plots.figures import plot_file
 
-        for png in plot_file(file, nu=nu):
-            typer.echo(str(png))
+        formats = tuple(f.strip() for f in fmt.split(",") if f.strip())
+        for figure in plot_file(file, nu=nu, formats=formats):
+            typer.echo(str(figure))
 
 
 @app.command(epilog="\b\nExamples:\n  critfric export inclined_body.h5\n  critfric export inclined_body.h5 --format vtu -o modes.vtu")

@@ -131,11 +131,47 @@ def export_file(path: Path | str, *, fmt: str = "xdmf", output: Path | str | Non
         tensor = np.column_stack([sxx, sxy, zero, sxy, syy, zero, zero, zero, szz])
         cell_data[f"{name}_stress"] = [tensor]
         cell_data[f"{name}_von_mises"] = [f["von_mises_cell"]]
-    out_mesh = meshio.Mesh(points, [(_MESHIO_CELL[mesh.element], np.asarray(mesh.cells))],
-                           point_data=point_data, cell_data=cell_data)
+    # the boundary edges as a second cell block, tagged 1, 2, ... by edge name (field data
+    # names the tags), so that ParaView can select the contact and Dirichlet edges
+    names = sorted(mesh.edges)
+    # (a second-order facet end, end, mid as two 2-node lines: every reader takes those)
+    facets = [np.asarray(mesh.edges[n]) for n in names]
+    facets = [f if f.shape[1] == 2 else f[:, [0, 2, 2, 1]].reshape(-1, 2) for f in facets]
+    edge_cells = np.concatenate(facets) if facets else np.zeros((0, 2), dtype=np.int64)
+    tags = np.concatenate([np.full(len(f), i + 1) for i, f in enumerate(facets)]) if facets \
+        else np.zeros(0, dtype=np.int64)
+    blocks = [(_MESHIO_CELL[mesh.element], np.asarray(mesh.cells))]
+    if fmt == "vtu":  # (XDMF readers take no mixed second-order topology: cells only there)
+        blocks.append(("line", edge_cells))
+        cell_data = {name: [values[0], np.zeros((len(edge_cells),) + np.shape(values[0])[1:])]
+                     for name, values in cell_data.items()}
+        cell_data["boundary_tag"] = [np.zeros(mesh.n_cells, dtype=np.int64), tags]
+    field_data = {n: np.array([i + 1, 1]) for i, n in enumerate(names)}
+    field_data.update({"critical_positive": np.atleast_1d(np.asarray(data.positive, float)),
+                       "critical_negative": np.atleast_1d(np.asarray(data.negative, float)),
+                       "nu": np.array([float(data.attrs["nu"])])})
+    out_mesh = meshio.Mesh(points, blocks, point_data=point_data, cell_data=cell_data,
+                           field_data=field_data)
     with staged(written) as stage:  # written aside, then renamed: never half an export
         if fmt == "xdmf":
             meshio.xdmf.write(stage[0], out_mesh, data_format="HDF")
         else:
             meshio.vtu.write(stage[0], out_mesh, binary=True)
+        if fmt == "vtu":  # (XDMF readers such as meshio refuse extra elements: VTU only)
+            _add_field_data(stage[0], field_data)
     return out
+
+
+def _add_field_data(path: Path, fields: dict) -> None:
+    """Write ``fields`` (name -> 1-D array) as the VTK FieldData of a .vtu file (meshio
+    leaves it out); ParaView shows it as the dataset's field data."""
+    def numbers(v) -> str:
+        return " ".join(f"{x:.17g}" for x in np.asarray(v, dtype=float))
+
+    arrays = "".join(f'<DataArray type="Float64" Name="{n}" NumberOfTuples="{len(v)}" '
+                     f'format="ascii">{numbers(v)}</DataArray>' for n, v in fields.items())
+    data, anchor = path.read_bytes(), b"<UnstructuredGrid>"
+    at = data.find(anchor)
+    if at >= 0:
+        at += len(anchor)
+        path.write_bytes(data[:at] + f"<FieldData>{arrays}</FieldData>".encode() + data[at:])

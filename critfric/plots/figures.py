@@ -22,6 +22,7 @@ from matplotlib.figure import Figure
 from matplotlib.tri import Triangulation
 
 from ..errors import CaseError
+from ..fem.elements import get_element
 from ..fem.loads import traction_load
 from ..files.export import SolveData, mode_fields, read_solve
 from ..files.sweepfile import read_sweep
@@ -29,10 +30,6 @@ from ..files.sweepfile import read_sweep
 DPI = 150
 ALPHA_LABEL = r"critical friction coefficient $\mu_{\rm cr}$"
 # local node pairs of the cell edges (through P2/Q2 midpoints), and linear sub-triangles
-_EDGES = {"P1": [(0, 1), (1, 2), (2, 0)],
-          "P2": [(0, 3), (3, 1), (1, 4), (4, 2), (2, 5), (5, 0)],
-          "Q1": [(0, 1), (1, 2), (2, 3), (3, 0)],
-          "Q2": [(0, 4), (4, 1), (1, 5), (5, 2), (2, 6), (6, 3), (3, 7), (7, 0)]}
 _TRIS = {"P1": [(0, 1, 2)], "P2": [(0, 3, 5), (3, 1, 4), (5, 4, 2), (3, 4, 5)],
          "Q1": [(0, 1, 2), (0, 2, 3)],
          "Q2": [(0, 4, 8), (0, 8, 7), (4, 1, 5), (4, 5, 8), (8, 5, 2), (8, 2, 6), (7, 8, 6),
@@ -41,38 +38,55 @@ _STYLE = {"P1": ("tab:blue", "o"), "P2": ("tab:orange", "s"), "Q1": ("tab:green"
           "Q2": ("tab:red", "D")}
 
 
-def plot_file(path: Path | str, *, nu: float | None = None) -> list[Path]:
-    """Write the figures of a sweep or solve file next to it; return their paths."""
+def plot_file(path: Path | str, *, nu: float | None = None,
+              formats: tuple[str, ...] = ("png",)) -> list[Path]:
+    """Write the figures of a sweep or solve file next to it, in each of ``formats`` (png,
+    pdf, svg); return their paths."""
     path = Path(path)
+    bad = [f for f in formats if f not in FORMATS]
+    if bad or not formats:
+        raise CaseError(f"got {','.join(formats)}; allowed: a comma list of "
+                        + ", ".join(FORMATS), key="--format")
+
     try:
         with h5py.File(path, "r") as f:
             kind = f.attrs.get("kind")
     except OSError as exc:
         raise CaseError(f"cannot read this file ({exc})", file=str(path)) from None
     if kind == "sweep":
-        return plot_sweep(path, nu=nu)
+        return plot_sweep(path, nu=nu, formats=formats)
     if kind == "solve":
-        return plot_solve(path)
+        return plot_solve(path, formats=formats)
     raise CaseError("is neither a sweep nor a solve file of critfric", file=str(path))
 
 
-def _save(fig: Figure, path: Path) -> Path:
-    fig.savefig(path, dpi=DPI, bbox_inches="tight")
-    return path
+FORMATS = ("png", "pdf", "svg")
+WIREFRAME_CELLS = 3000  # above this, a deformed mesh is drawn as colour, not as wires
+
+
+def _save(fig: Figure, path: Path, formats) -> list[Path]:
+    """Write ``fig`` as ``path`` in each of ``formats``; the paths written."""
+    out = []
+    for fmt in formats:
+        target = path.with_suffix(f".{fmt}")
+        fig.savefig(target, dpi=DPI, bbox_inches="tight")
+        out.append(target)
+    return out
 
 
 # ------------------------------------------------------------------------------ sweeps
-def plot_sweep(path: Path, *, nu: float | None = None) -> list[Path]:
+def plot_sweep(path: Path, *, nu: float | None = None, formats=("png",)) -> list[Path]:
     data = read_sweep(path)
     rows, limits = data["rows"], data["limits"]
     order = {el: i for i, el in enumerate(json.loads(data["attrs"]["grid"])["element"])}
     rows = sorted(rows, key=lambda r: (order.get(r["element"], 99), r["nu"]))
     title = f"{data['attrs'].get('case_name', '')}"
-    out = [_save(_critical_vs_nu(rows, limits, title), path.with_name(f"{path.stem}_critical.png"))]
+    out = _save(_critical_vs_nu(rows, limits, title), path.with_name(f"{path.stem}_critical"),
+                formats)
     sizes = {r["size"] for r in rows if r["size"] is not None}
     if len(sizes) >= 2:
-        out.append(_save(_convergence(rows, limits, title, nu),
-                         path.with_name(f"{path.stem}_convergence.png")))
+        out += _save(_convergence(rows, limits, title, nu),
+                     path.with_name(f"{path.stem}_convergence"), formats)
     return out
 
 
@@ -186,18 +200,23 @@ def _convergence(rows, limits, title, nu) -> Figure:
 
 
 # ------------------------------------------------------------------------------ solves
-def plot_solve(path: Path) -> list[Path]:
+def plot_solve(path: Path, *, formats=("png",)) -> list[Path]:
     data = read_solve(path)
     stem = path.with_name(path.stem)
     out = []
     if data.modes:
         name, mode = next(iter(data.modes.items()))
         fields = mode_fields(data, mode)
-        out.append(_save(_deformed(data, name, mode, fields), Path(f"{stem}_deformed.png")))
-        out.append(_save(_von_mises(data, name, mode, fields), Path(f"{stem}_von_mises.png")))
-        out.append(_save(_contact_forces(data), Path(f"{stem}_contact_forces.png")))
-    out.append(_save(_spectrum(data), Path(f"{stem}_spectrum.png")))
+        out += _save(_deformed(data, name, mode, fields), Path(f"{stem}_deformed"), formats)
+        out += _save(_von_mises(data, name, mode, fields), Path(f"{stem}_von_mises"), formats)
+        out += _save(_contact_forces(data), Path(f"{stem}_contact_forces"), formats)
+    out += _save(_spectrum(data), Path(f"{stem}_spectrum"), formats)
     return out
+
+
+def _triangles(mesh) -> np.ndarray:
+    """The cells split into straight triangles for drawing (P2/Q2 through their nodes)."""
+    return np.asarray(mesh.cells)[:, np.array(_TRIS[mesh.element])].reshape(-1, 3)
 
 
 def _label(data: SolveData, name: str, mode: dict) -> str:
@@ -207,7 +226,11 @@ def _label(data: SolveData, name: str, mode: dict) -> str:
 
 
 def _segments(mesh, points) -> np.ndarray:
-    pairs = np.asarray(mesh.cells)[:, np.array(_EDGES[mesh.element])].reshape(-1, 2)
+    """Every cell edge as straight segments (a P2/Q2 edge as two, through its midpoint)."""
+    local = get_element(mesh.element).edges
+    if local.shape[1] == 3:
+        local = local[:, [0, 2, 2, 1]].reshape(-1, 2)
+    pairs = np.asarray(mesh.cells)[:, local].reshape(-1, 2)
     pairs = np.unique(np.sort(pairs, axis=1), axis=0)
     return points[pairs]  # (n_segments, 2, 2)
 
@@ -231,8 +254,16 @@ def _deformed(data, name, mode, fields) -> Figure:
     ax = fig.subplots()
     ax.add_collection(LineCollection(_boundary(data, mesh.points), colors="0.6", lw=1,
                                      linestyles="--", label="undeformed boundary"))
-    ax.add_collection(LineCollection(_segments(mesh, moved), colors="tab:blue", lw=0.4,
-                                     label=r"deformed mesh $x + s\,\Phi$"))
+    if mesh.n_cells <= WIREFRAME_CELLS:
+        ax.add_collection(LineCollection(_segments(mesh, moved), colors="tab:blue", lw=0.4,
+                                         label=r"deformed mesh $x + s\,\Phi$"))
+    else:  # a fine mesh: its wireframe would be a solid blot; |Phi| in colour shows the mode
+        tri = Triangulation(moved[:, 0], moved[:, 1], _triangles(mesh))
+        shade = ax.tripcolor(tri, np.linalg.norm(fields["phi"], axis=1), shading="gouraud",
+                             cmap="Blues")
+        fig.colorbar(shade, ax=ax, shrink=0.7, label=r"$|\Phi|$ on the deformed body")
+        ax.add_collection(LineCollection(_boundary(data, moved), colors="tab:blue", lw=1,
+                                         label=r"deformed boundary $x + s\,\Phi$"))
     ax.add_collection(LineCollection(_boundary(data, moved, data.contact_edges),
                                      colors="tab:red", lw=2, label=r"$\Gamma_C$"))
     ax.autoscale_view()
@@ -242,13 +273,13 @@ def _deformed(data, name, mode, fields) -> Figure:
     ax.set_title(f"Eigenfunction Φ ({_label(data, name, mode)})\n"
                  f"displacement scaled to max |sΦ| = {scale:.3g} (10% of the body size)",
                  fontsize=9)
-    ax.legend(fontsize=8, loc="best")
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3)
     return fig
 
 
 def _von_mises(data, name, mode, fields) -> Figure:
     mesh = data.mesh
-    tris = np.asarray(mesh.cells)[:, np.array(_TRIS[mesh.element])].reshape(-1, 3)
+    tris = _triangles(mesh)
     tri = Triangulation(mesh.points[:, 0], mesh.points[:, 1], tris)
     values = fields["von_mises_node"]
     used = np.unique(tris)
@@ -333,8 +364,9 @@ def _spectrum(data: SolveData) -> Figure:
             ax.set_aspect("equal")
             ax.set_title(f"Near the critical coefficients ({outside} eigenvalues outside)",
                          fontsize=9)
-            ax.legend(fontsize=8, loc="upper right")
+    handles, labels = fig.axes[1].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=9, loc="lower center", ncol=len(labels))
     fig.suptitle(f"Spectrum of (3.2): {data.attrs.get('case_name', '')}, "
                  f"{data.attrs['element']}, ν = {float(data.attrs['nu']):g}")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.07, 1, 1))  # room for the legend below the data
     return fig

@@ -41,10 +41,11 @@ def solutions_plot(sweep, path: Path | str, *, title: str = "") -> Path:
             labelled = True
     ax.set_xlabel("friction coefficient")
     ax.set_ylabel("mean tangential displacement on $\\Gamma_C$")
-    ax.set_title(title or "Solutions of the static Coulomb problem")
+    ax.set_title("Solutions of the static Coulomb problem (2.8) against friction"
+                 + (f"\n{title}" if title else ""), fontsize=10)
     ax.grid(alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
-    fig.savefig(path, dpi=120)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
     return Path(path)
 
 

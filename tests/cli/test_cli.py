@@ -123,3 +123,22 @@ def test_quiet_and_verbose(tmp_path):
     assert error.exit_code == 2 and error.stderr.startswith("critfric: error:")
     normal = run_cli("solve", "one-triangle", "-o", tmp_path / "c.h5")
     assert "wrote" in normal.stderr and "stages" not in normal.stderr
+
+
+def test_plots_in_every_format_and_exports_with_tags_and_coefficients(tmp_path):
+    import meshio
+
+    out = tmp_path / "r.h5"
+    assert run_cli("solve", "unit-square", "-o", out).exit_code == 0
+    res = run_cli("plot", out, "--format", "png,pdf,svg")
+    assert res.exit_code == 0
+    made = {p.suffix for p in tmp_path.glob("r_*")}
+    assert {".png", ".pdf", ".svg"} <= made
+    assert run_cli("plot", out, "--format", "gif").exit_code == 2
+    assert run_cli("export", out, "--format", "vtu").exit_code == 0
+    vtu = (tmp_path / "r_modes.vtu").read_text(errors="replace")
+    assert "<FieldData>" in vtu and 'Name="critical_positive"' in vtu
+    mesh = meshio.read(tmp_path / "r_modes.vtu")
+    assert [c.type for c in mesh.cells] == ["triangle", "line"]
+    tags = mesh.cell_data["boundary_tag"][1]
+    assert set(tags) == {1, 2, 3, 4}  # bottom, left, right, top
