@@ -57,9 +57,10 @@ def write_result(result, path: Path | str, *, force: bool = False) -> Path:
             "gamma": s["gamma"], "tol": s["tol"], "real_tol": s["real_tol"],
             "infinite_tol": INFINITE_TOL, "residual_tol": RESIDUAL_TOL,
             "applications": result.applications, "n_infinite": result.n_infinite,
-            "seconds": result.seconds, "timings": json.dumps(result.timings),
-            "warnings": json.dumps(result.warnings),
-            "notes": json.dumps(result.notes), "normal": result.normal,
+            "seconds": result.seconds,
+            **{f"seconds_{stage}": float(s) for stage, s in result.timings.items()},
+            "warnings": _strings(result.warnings), "notes": _strings(result.notes),
+            "normal": result.normal,
             "tangent": np.array([-result.normal[1], result.normal[0]]),
         })
         f["eigen/alpha"] = result.alpha.astype(np.complex128)
@@ -103,6 +104,18 @@ DESCRIPTIONS = {
 }
 
 
+def _strings(values: list[str]) -> np.ndarray:
+    """A list of texts as a plain HDF5 attribute (an array of UTF-8 strings, empty allowed)."""
+    return np.array(list(values), dtype=h5py.string_dtype())
+
+
+def text_list(value) -> list[str]:
+    """An attribute written by :func:`_strings` (or, in version-1 files, as JSON) as a list."""
+    if isinstance(value, (str, bytes)):
+        return [str(v) for v in json.loads(value)]
+    return [v.decode() if isinstance(v, bytes) else str(v) for v in np.atleast_1d(value)]
+
+
 def _describe(name: str, obj) -> None:
     if isinstance(obj, h5py.Dataset):
         leaf = name.rsplit("/", 1)[-1]
@@ -139,7 +152,7 @@ def read_summary(path: Path | str) -> dict:
                 "size": None if np.isnan(size) else size, "method": str(a["solver"]),
                 "backend": str(a.get("backend", "scipy")),
                 "complete": bool(a.get("complete", True)),
-                "seconds": float(a["seconds"]), "warnings": json.loads(a["warnings"]),
+                "seconds": float(a["seconds"]), "warnings": text_list(a["warnings"]),
             }
     except (OSError, KeyError, ValueError, TypeError, IndexError) as exc:
         raise CaseError(f"cannot read this result file ({exc})", file=str(path)) from None

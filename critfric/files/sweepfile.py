@@ -4,7 +4,7 @@ Layout (``schema_version`` 1)::
 
     /            attrs: kind="sweep", critfric_version, schema_version, case_name,
                  case_source, case_toml (the effective case), grid (JSON: nu, size, element),
-                 count, notes (JSON)
+                 count, notes (a list of strings)
     /points/     parallel 1-D datasets, one row per finished point, in the order finished:
                  nu, size (NaN for an inline mesh), element, h, n_dofs, n_contact,
                  positive (n, count) and negative (n, count) (lowest first, NaN-padded),
@@ -81,7 +81,8 @@ def open_sweep(path: Path, *, case, grid, force: bool = False) -> set[tuple]:
         f.attrs.update({
             "kind": "sweep", "critfric_version": __version__, "schema_version": SCHEMA_VERSION,
             "case_name": case.name, "case_source": case.source, "case_toml": toml,
-            "grid": grid_json, "count": count, "notes": json.dumps(grid.notes),
+            "grid": grid_json, "count": count,
+            "notes": np.array(list(grid.notes), dtype=h5py.string_dtype()),
         })
         g = f.create_group("points")
         for name in FLOAT_COLUMNS:
@@ -200,6 +201,7 @@ COORDINATES = {"nu": ("1", "Poisson ratio"), "size": ("length unit of the case",
 
 
 def _write_grid(f: h5py.File, grid, rows: list[dict]) -> None:
+    _points_in_order(f["points"], [row_key(r) for r in rows])
     for name in list(GRID_VARIABLES) + list(COORDINATES):
         if name in f:
             del f[name]
@@ -230,6 +232,22 @@ def _write_grid(f: h5py.File, grid, rows: list[dict]) -> None:
         ds.attrs.update({"units": units, "long_name": long_name})
         for axis, dim in enumerate(dims):
             ds.dims[axis].attach_scale(f[dim])
+
+
+def _points_in_order(g: h5py.Group, keys: list[tuple]) -> None:
+    """Reorder the point table (written in the order points finished) into ``keys``' order
+    (the grid's); points not in ``keys`` keep their order after them."""
+    n = len(g["status"])
+    size = g["size"][:n]
+    element = [e.decode() if isinstance(e, bytes) else str(e) for e in g["element"][:n]]
+    stored = {(element[i], -1.0 if math.isnan(size[i]) else float(size[i]),
+               float(g["nu"][i])): i for i in range(n)}
+    first = [stored[k] for k in keys if k in stored]
+    order = first + sorted(set(range(n)) - set(first))
+    if order == list(range(n)):
+        return
+    for name in g:
+        g[name][:n] = g[name][:n][order]
 
 
 def _read_table(g) -> list[dict]:

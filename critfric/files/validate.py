@@ -21,7 +21,7 @@ SLACK_BYTES = 1 << 20  # a dataset may declare at most 4 x the file's size plus 
 # root attributes: name -> kind ("int", "float", "str", "json", "element")
 SOLVE_ATTRS = {"nu": "float", "E": "float", "h": "float", "n_dofs": "int", "n_contact": "int",
                "seconds": "float", "element": "element", "case_name": "str", "solver": "str",
-               "case_toml": "str", "warnings": "json", "notes": "json"}
+               "case_toml": "str", "warnings": "texts", "notes": "texts"}
 SWEEP_ATTRS = {"case_name": "str", "case_toml": "str", "grid": "json", "count": "int"}
 
 
@@ -111,6 +111,10 @@ def _attr_ok(value, want: str) -> bool:
         return False
     if isinstance(value, np.ndarray) and value.shape == ():
         value = value.item()
+    if want == "texts":  # a list of strings; JSON text in version-1 files
+        if isinstance(value, np.ndarray):
+            return value.ndim == 1 and value.dtype.kind in "OSU"
+        want = "json"
     if want == "int":
         return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
     if want == "float":

@@ -59,8 +59,9 @@ def run_in_child(path: Path, data: bytes, job: dict, *, entry: str,
             proc = subprocess.run(
                 [sys.executable, "-I", "-c", code, package_root, entry], cwd=tmp, env=env,
                 stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                timeout=WALL_SECONDS, preexec_fn=functools.partial(_limits, _space(job, data)),
-                check=False)
+                timeout=WALL_SECONDS, check=False,  # (limits by setrlimit: POSIX systems)
+                preexec_fn=functools.partial(_limits, _space(job, data))
+                if os.name == "posix" else None)
         except subprocess.TimeoutExpired:
             raise CaseError(f"reading or meshing this file took more than {WALL_SECONDS} s "
                             "and was stopped (an endless loop in a .geo script?)",

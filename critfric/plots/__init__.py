@@ -1,5 +1,5 @@
 """Figures of solve and sweep files (the paper's figures) and of static solutions."""
 
-from .figures import plot_file
+from .figures import figures, plot_file, solve_figures, sweep_figures
 
-__all__ = ["plot_file"]
+__all__ = ["figures", "plot_file", "solve_figures", "sweep_figures"]

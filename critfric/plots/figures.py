@@ -48,15 +48,25 @@ def plot_file(path: Path | str, *, nu: float | None = None,
         raise CaseError(f"got {','.join(formats)}; allowed: a comma list of "
                         + ", ".join(FORMATS), key="--format")
 
+    out = []
+    for name, fig in figures(path, nu=nu).items():
+        out += _save(fig, path.with_name(f"{path.stem}_{name}"), formats)
+    return out
+
+
+def figures(path: Path | str, *, nu: float | None = None) -> dict[str, Figure]:
+    """The figures of a sweep or solve file, by name, as matplotlib Figures to show, compose
+    or save (:func:`plot_file` saves them next to the file)."""
+    path = Path(path)
     try:
         with h5py.File(path, "r") as f:
             kind = f.attrs.get("kind")
     except OSError as exc:
         raise CaseError(f"cannot read this file ({exc})", file=str(path)) from None
     if kind == "sweep":
-        return plot_sweep(path, nu=nu, formats=formats)
+        return sweep_figures(path, nu=nu)
     if kind == "solve":
-        return plot_solve(path, formats=formats)
+        return solve_figures(path)
     raise CaseError("is neither a sweep nor a solve file of critfric", file=str(path))
 
 
@@ -75,18 +85,17 @@ def _save(fig: Figure, path: Path, formats) -> list[Path]:
 
 
 # ------------------------------------------------------------------------------ sweeps
-def plot_sweep(path: Path, *, nu: float | None = None, formats=("png",)) -> list[Path]:
+def sweep_figures(path: Path, *, nu: float | None = None) -> dict[str, Figure]:
+    """``critical`` (coefficients against nu, Figs. 4 and 7) and, with two sizes or more,
+    ``convergence`` (against h, Fig. 5)."""
     data = read_sweep(path)
     rows, limits = data["rows"], data["limits"]
     order = {el: i for i, el in enumerate(json.loads(data["attrs"]["grid"])["element"])}
     rows = sorted(rows, key=lambda r: (order.get(r["element"], 99), r["nu"]))
     title = f"{data['attrs'].get('case_name', '')}"
-    out = _save(_critical_vs_nu(rows, limits, title), path.with_name(f"{path.stem}_critical"),
-                formats)
-    sizes = {r["size"] for r in rows if r["size"] is not None}
-    if len(sizes) >= 2:
-        out += _save(_convergence(rows, limits, title, nu),
-                     path.with_name(f"{path.stem}_convergence"), formats)
+    out = {"critical": _critical_vs_nu(rows, limits, title)}
+    if len({r["size"] for r in rows if r["size"] is not None}) >= 2:
+        out["convergence"] = _convergence(rows, limits, title, nu)
     return out
 
 
@@ -200,17 +209,18 @@ def _convergence(rows, limits, title, nu) -> Figure:
 
 
 # ------------------------------------------------------------------------------ solves
-def plot_solve(path: Path, *, formats=("png",)) -> list[Path]:
+def solve_figures(path: Path) -> dict[str, Figure]:
+    """``deformed`` (Fig. 8), ``von_mises`` (Fig. 9), ``contact_forces`` (of the first stored
+    mode) and ``spectrum``."""
     data = read_solve(path)
-    stem = path.with_name(path.stem)
-    out = []
+    out = {}
     if data.modes:
         name, mode = next(iter(data.modes.items()))
         fields = mode_fields(data, mode)
-        out += _save(_deformed(data, name, mode, fields), Path(f"{stem}_deformed"), formats)
-        out += _save(_von_mises(data, name, mode, fields), Path(f"{stem}_von_mises"), formats)
-        out += _save(_contact_forces(data), Path(f"{stem}_contact_forces"), formats)
-    out += _save(_spectrum(data), Path(f"{stem}_spectrum"), formats)
+        out["deformed"] = _deformed(data, name, mode, fields)
+        out["von_mises"] = _von_mises(data, name, mode, fields)
+        out["contact_forces"] = _contact_forces(data)
+    out["spectrum"] = _spectrum(data)
     return out
 
 

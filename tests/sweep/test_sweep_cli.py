@@ -175,3 +175,17 @@ def test_solve_file_datasets_carry_units_and_long_names(tmp_path):
         names = []
         f.visititems(lambda n, o: names.append(n) if isinstance(o, h5py.Dataset) else None)
         assert names and all("units" in f[n].attrs and f[n].attrs["long_name"] for n in names)
+
+
+def test_the_point_table_ends_in_grid_order(tmp_path):
+    import h5py
+
+    out = tmp_path / "s.h5"
+    res = run_cli("sweep", "four-triangles", "--nu", "0.4,0.1,0.3,0.2,0.05,0.25", "-o", out,
+                  "-j", "2")
+    assert res.exit_code == 0, res.output
+    with h5py.File(out) as f:
+        assert list(f["points/nu"][()]) == [0.05, 0.1, 0.2, 0.25, 0.3, 0.4]
+        alpha = f["points/positive"][:, 0]
+    np.testing.assert_allclose(alpha, [four_triangles_alpha(v) for v in
+                                       (0.05, 0.1, 0.2, 0.25, 0.3, 0.4)], rtol=1e-10)
