@@ -21,7 +21,10 @@ _API = {
     "solve_prepared": "solve", "verify": "multiplicity.verify", "coulomb": "solvers.coulomb",
 }
 
-__all__ = sorted(_API) + ["__version__"]
+__all__ = ["Case", "CaseError", "CritfricError", "Prepared", "Result", "SolverError",
+           "WriteError", "__version__", "coulomb", "load_case", "loads_case", "prepare",
+           "read_summary", "shipped_cases", "solve_case", "solve_prepared", "verify",
+           "write_result"]
 
 
 def __getattr__(name: str):

@@ -26,7 +26,7 @@ class CaseError(CritfricError):
         where = ": ".join(part for part in (file, f"[{key}]" if key else None) if part)
         super().__init__(f"{where}: {message}" if where else message)
 
-    def located(self, file: str) -> "CaseError":
+    def located(self, file: str) -> CaseError:
         """This error, naming ``file`` if it named no file yet."""
         return self if self.file else CaseError(self.detail, file=file, key=self.key)
 

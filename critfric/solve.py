@@ -85,7 +85,7 @@ class Result:
         return len(self.contact_nodes)
 
     def __repr__(self) -> str:
-        lowest = lambda v: f"{v[0]:.10g}" if len(v) else "none"  # noqa: E731
+        lowest = lambda v: f"{v[0]:.10g}" if len(v) else "none"
         return (f"Result({self.case.name!r}, {self.element}, nu={self.nu:g}, "
                 f"h={self.h:.4g}, n_dofs={self.n_dofs}, critical={lowest(self.positive)}, "
                 f"lowest negative={lowest(self.negative)}, {len(self.alpha)} eigenvalues)")

@@ -9,7 +9,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/<stage>/ import helpers
 
-from helpers import square_case  # noqa: E402
+from helpers import square_case
 
 
 @pytest.fixture(scope="session")

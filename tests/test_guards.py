@@ -93,9 +93,8 @@ def test_a_second_writer_is_refused_and_the_lock_goes_away(tmp_path):
         lock = tmp_path / ".r.h5.lock"
         assert lock.read_text() == str(os.getpid())
         with pytest.raises(CaseError, match=rf"r\.h5.*another critfric process \(pid "
-                                            rf"{os.getpid()}"):
-            with output_lock(out):
-                pass
+                                            rf"{os.getpid()}"), output_lock(out):
+            pass
     assert not lock.exists()
     lock.write_text("12345")  # left by a killed writer: not locked, so not in the way
     with output_lock(out):

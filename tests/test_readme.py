@@ -20,7 +20,7 @@ QUICKER = {"--nu 0:0.5:21": "--nu 0:0.5:3", "--size 0.1,0.05,0.025,0.0125": "--s
 
 
 def _blocks(language: str) -> list[str]:
-    return re.findall(rf"```{language}\n(.*?)```", README, flags=re.S)
+    return re.findall(rf"```{language}\n(.*?)```", README, flags=re.DOTALL)
 
 
 def _commands() -> list[str]:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
@@ -31,7 +31,7 @@ app = typer.Typer(
 )
 
 
-MaxDofs = Annotated[Optional[int], typer.Option(
+MaxDofs = Annotated[int | None, typer.Option(
     "--max-dofs", min=1, help="Refuse meshes above this many DOFs [default: what memory allows].")]
 TrustGeo = Annotated[bool, typer.Option(
     "--trust-geo", help="Mesh a .geo script even if it can run programs or touch other files.")]
@@ -60,15 +60,15 @@ def _table(rows: list[dict]) -> str:
 def solve(
     case: str = typer.Argument(..., help="Case file (TOML) or shipped case name "
                                          "(see `critfric cases`)."),
-    nu: Optional[float] = typer.Option(None, help="Poisson ratio, overrides [material] nu."),
-    element: Optional[str] = typer.Option(None, help="Element: " + ", ".join(NAMES) + "."),
-    size: Optional[float] = typer.Option(None, help="Target mesh size h."),
-    count: Optional[int] = typer.Option(None, help="Lowest positive coefficients wanted."),
-    shift: Optional[float] = typer.Option(None, help="Find eigenvalues nearest this value."),
-    method: Optional[str] = typer.Option(None, help="Eigen solver: " + ", ".join(METHODS) + "."),
-    backend: Optional[str] = typer.Option(None, help="Sparse linear solver: "
-                                          + ", ".join(BACKENDS) + "."),
-    output: Optional[Path] = typer.Option(None, "--output", "-o", help="HDF5 result file."),
+    nu: float | None = typer.Option(None, help="Poisson ratio, overrides [material] nu [default: the case's]."),
+    element: str | None = typer.Option(None, help="Element: " + ", ".join(NAMES) + " [default: the case's]."),
+    size: float | None = typer.Option(None, help="Target mesh size h [default: the case's]."),
+    count: int | None = typer.Option(None, help="Lowest positive coefficients wanted [default: the case's, else 1]."),
+    shift: float | None = typer.Option(None, help="Find eigenvalues nearest this value [default: the case's, else 0: the lowest]."),
+    method: str | None = typer.Option(None, help="Eigen solver: " + ", ".join(METHODS) + " [default: the case's, else auto]."),
+    backend: str | None = typer.Option(None, help="Sparse linear solver: "
+                                          + ", ".join(BACKENDS) + " [default: the case's, else auto]."),
+    output: Path | None = typer.Option(None, "--output", "-o", help="HDF5 result file [default: <case name>.h5]."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing result file."),
     as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
     max_dofs: MaxDofs = None,
@@ -146,23 +146,23 @@ def table(
 
 @app.command(epilog="\b\nExamples:\n  critfric sweep --nu 0:0.5\n  critfric sweep unit-square --nu 0.3 --size 0.1,0.05,0.025 --element P1,P2 -o fig5.h5\n  critfric sweep inclined-body --nu 0:0.5:21 --plot -j 2")
 def sweep(
-    case: Optional[str] = typer.Argument(None, help="Case file or shipped case name "
+    case: str | None = typer.Argument(None, help="Case file or shipped case name "
                                                     "[default: unit-square]."),
-    nu: Optional[str] = typer.Option(None, help="Poisson ratios: A:B[:N] (N points, default "
+    nu: str | None = typer.Option(None, help="Poisson ratios: A:B[:N] (N points, default "
                                      "11; a range ending at 0.5 stops just short of it) or "
                                      "v1,v2,... [default: the case's nu]."),
-    size: Optional[str] = typer.Option(None, help="Mesh sizes h1,h2,... (three or more give "
+    size: str | None = typer.Option(None, help="Mesh sizes h1,h2,... (three or more give "
                                        "h -> 0 limits) [default: the case's size]."),
-    element: Optional[str] = typer.Option(None, help="Elements, e.g. P1,P2 [default: the "
+    element: str | None = typer.Option(None, help="Elements, e.g. P1,P2 [default: the "
                                           "case's element]."),
-    grading: Optional[float] = typer.Option(None, help="Meshes graded towards the ends of "
+    grading: float | None = typer.Option(None, help="Meshes graded towards the ends of "
                                             "Gamma_C: size g*h there, g in (0, 1]."),
-    count: Optional[int] = typer.Option(None, help="Lowest coefficients stored per family."),
-    jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help="Worker processes "
+    count: int | None = typer.Option(None, help="Lowest coefficients stored per family."),
+    jobs: int | None = typer.Option(None, "--jobs", "-j", min=1, help="Worker processes "
                                        "[default: all cores]."),
-    scheduler: Optional[str] = typer.Option(None, help="Run on this Dask scheduler "
+    scheduler: str | None = typer.Option(None, help="Run on this Dask scheduler "
                                             "(e.g. tcp://host:8786) instead."),
-    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Sweep file "
+    output: Path | None = typer.Option(None, "--output", "-o", help="Sweep file "
                                           "[default: <case name>_sweep_<digest of case and grid>.h5]."),
     force: bool = typer.Option(False, "--force", help="Discard an existing sweep file written "
                                "for another case or grid."),
@@ -207,7 +207,7 @@ def sweep(
 @app.command(epilog="\b\nExamples:\n  critfric plot fig5.h5\n  critfric plot inclined_body.h5 --format png,pdf")
 def plot(
     file: Path = typer.Argument(..., help="A sweep or solve file."),
-    nu: Optional[float] = typer.Option(None, help="Sweep: the nu of the convergence figure "
+    nu: float | None = typer.Option(None, help="Sweep: the nu of the convergence figure "
                                        "[default: the middle one]."),
     fmt: str = typer.Option("png", "--format", help="Comma list of png, pdf, svg."),
 ) -> None:
@@ -224,7 +224,7 @@ def plot(
 def export(
     file: Path = typer.Argument(..., help="A solve file."),
     fmt: str = typer.Option("xdmf", "--format", help="xdmf or vtu."),
-    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Output file "
+    output: Path | None = typer.Option(None, "--output", "-o", help="Output file "
                                           "[default: <file>_modes.<format>]."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing export."),
 ) -> None:
@@ -240,9 +240,9 @@ def solutions(
     case: str = typer.Argument(..., help="Case file or shipped case name; its [load] is used."),
     friction: str = typer.Option(..., "--friction", help="Friction values: a:b:N (N values "
                                  "from a to b) or one value."),
-    nu: Optional[float] = typer.Option(None, help="Poisson ratio, overrides [material] nu."),
+    nu: float | None = typer.Option(None, help="Poisson ratio, overrides [material] nu [default: the case's]."),
     as_json: bool = typer.Option(False, "--json", help="Print only a JSON list on stdout."),
-    plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of the bifurcation diagram "
+    plot: Path | None = typer.Option(None, "--plot", help="PNG of the bifurcation diagram "
                                         "[default: <case name>_solutions.png]."),
     no_plot: bool = typer.Option(False, "--no-plot", help="Write no PNG."),
 ) -> None:
@@ -265,12 +265,12 @@ def solutions(
 @app.command(epilog="\b\nExamples:\n  critfric verify inclined-body\n  critfric verify unit-square --element P2 --json")
 def verify(
     case: str = typer.Argument(..., help="Case file or shipped case name."),
-    nu: Optional[float] = typer.Option(None, help="Poisson ratio, overrides [material] nu."),
-    element: Optional[str] = typer.Option(None, help="Element: " + ", ".join(NAMES) + "."),
-    size: Optional[float] = typer.Option(None, help="Target mesh size h."),
+    nu: float | None = typer.Option(None, help="Poisson ratio, overrides [material] nu [default: the case's]."),
+    element: str | None = typer.Option(None, help="Element: " + ", ".join(NAMES) + " [default: the case's]."),
+    size: float | None = typer.Option(None, help="Target mesh size h [default: the case's]."),
     off: float = typer.Option(0.01, help="Counter-check at friction * (1 -/+ off)."),
     as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
-    plot: Optional[Path] = typer.Option(None, "--plot", help="PNG of the branch "
+    plot: Path | None = typer.Option(None, "--plot", help="PNG of the branch "
                                         "[default: <case name>_verify.png]."),
     no_plot: bool = typer.Option(False, "--no-plot", help="Write no PNG."),
 ) -> None:

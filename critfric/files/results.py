@@ -32,7 +32,7 @@ from ..errors import CaseError
 from ..solvers.eigen import INFINITE_TOL, RESIDUAL_TOL
 from . import validate
 from .safety import atomic_h5, check_output
-from .validate import SCHEMA_VERSION  # noqa: E402  (one number for both kinds)
+from .validate import SCHEMA_VERSION
 
 
 def default_output(case) -> Path:

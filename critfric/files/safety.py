@@ -21,7 +21,7 @@ class interrupt_guard:
     raised inside a garbage-collection callback or ``__del__``: there the interrupt is kept
     silently for :meth:`check`. A no-op outside the main thread or if SIGINT is ignored."""
 
-    def __enter__(self) -> "interrupt_guard":
+    def __enter__(self) -> interrupt_guard:
         self.hit = False
         self._saved = None
         try:
@@ -162,11 +162,10 @@ def atomic_h5(path: Path, fill) -> Path:
     buffer = io.BytesIO()
     with h5py.File(buffer, "w") as f:
         fill(f)
-    with staged([path]) as stage:
-        with open(stage[0], "wb") as out:
-            out.write(buffer.getbuffer())
-            out.flush()
-            os.fsync(out.fileno())
+    with staged([path]) as stage, open(stage[0], "wb") as out:
+        out.write(buffer.getbuffer())
+        out.flush()
+        os.fsync(out.fileno())
     return path
 
 

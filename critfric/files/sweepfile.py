@@ -38,7 +38,7 @@ from .._version import __version__
 from ..errors import CaseError, WriteError
 from .results import file_attrs
 from .safety import atomic_h5, check_output
-from .validate import SCHEMA_VERSION  # noqa: E402  (one number for both kinds)
+from .validate import SCHEMA_VERSION
 
 STR = h5py.string_dtype()
 FLOAT_COLUMNS = ("nu", "size", "h", "seconds")

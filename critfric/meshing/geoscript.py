@@ -22,53 +22,21 @@ from __future__ import annotations
 import bisect
 import re
 
-STATEMENTS = frozenset("""
-Point Line Circle Ellipse Spline BSpline Bezier Curve Loop Surface Plane Physical Transfinite
-Recombine Characteristic Length MeshSize Mesh Field Background Coherence Delete Compound
-Translate Rotate Symmetry Dilate Duplicata Extrude Layers Recombine Boundary CombinedBoundary
-For In EndFor If ElseIf Else EndIf Using Progression Bump Beta Left Right Alternate
-AlternateLeft AlternateRight Smoothing Reverse Reverse Rectangle Disk Circle BooleanUnion
-BooleanDifference BooleanIntersection BooleanFragments SetFactory Hide Show
-Geometry Color Macro Function Call Return Printf
-""".split())
-FUNCTIONS = frozenset("""
-Sqrt Sin Cos Tan Asin Acos Atan Atan2 Sinh Cosh Tanh Exp Log Log10 Fabs Abs Floor Ceil Round
-Fmod Modulo Hypot Rand Min Max Pi Sign Step
-newp newl news newll newc newreg newf newcl newsl newv newvl
-""".split())
+STATEMENTS = frozenset(["Point", "Line", "Circle", "Ellipse", "Spline", "BSpline", "Bezier", "Curve", "Loop", "Surface", "Plane", "Physical", "Transfinite", "Recombine", "Characteristic", "Length", "MeshSize", "Mesh", "Field", "Background", "Coherence", "Delete", "Compound", "Translate", "Rotate", "Symmetry", "Dilate", "Duplicata", "Extrude", "Layers", "Recombine", "Boundary", "CombinedBoundary", "For", "In", "EndFor", "If", "ElseIf", "Else", "EndIf", "Using", "Progression", "Bump", "Beta", "Left", "Right", "Alternate", "AlternateLeft", "AlternateRight", "Smoothing", "Reverse", "Reverse", "Rectangle", "Disk", "Circle", "BooleanUnion", "BooleanDifference", "BooleanIntersection", "BooleanFragments", "SetFactory", "Hide", "Show", "Geometry", "Color", "Macro", "Function", "Call", "Return", "Printf"])
+FUNCTIONS = frozenset(["Sqrt", "Sin", "Cos", "Tan", "Asin", "Acos", "Atan", "Atan2", "Sinh", "Cosh", "Tanh", "Exp", "Log", "Log10", "Fabs", "Abs", "Floor", "Ceil", "Round", "Fmod", "Modulo", "Hypot", "Rand", "Min", "Max", "Pi", "Sign", "Step", "newp", "newl", "news", "newll", "newc", "newreg", "newf", "newcl", "newsl", "newv", "newvl"])
 OPTIONS = {
-    "Mesh": frozenset("""
-CharacteristicLengthMax CharacteristicLengthMin CharacteristicLengthFactor
-CharacteristicLengthFromPoints CharacteristicLengthFromCurvature CharacteristicLengthExtendFromBoundary
-MeshSizeMax MeshSizeMin MeshSizeFactor MeshSizeFromPoints MeshSizeFromCurvature
-MeshSizeExtendFromBoundary MeshSizeFromParametricPoints Algorithm RecombineAll
-RecombinationAlgorithm Smoothing ElementOrder SecondOrderLinear SecondOrderIncomplete
-Optimize OptimizeNetgen OptimizeThreshold RandomFactor RandomSeed AngleToleranceFacetOverlap
-SubdivisionAlgorithm TransfiniteTri MinimumCirclePoints MinimumCurvePoints
-""".split()),
-    "Geometry": frozenset("""
-Tolerance ToleranceBoolean AutoCoherence OCCBooleanPreserveNumbering MatchMeshTolerance
-""".split()),
+    "Mesh": frozenset(["CharacteristicLengthMax", "CharacteristicLengthMin", "CharacteristicLengthFactor", "CharacteristicLengthFromPoints", "CharacteristicLengthFromCurvature", "CharacteristicLengthExtendFromBoundary", "MeshSizeMax", "MeshSizeMin", "MeshSizeFactor", "MeshSizeFromPoints", "MeshSizeFromCurvature", "MeshSizeExtendFromBoundary", "MeshSizeFromParametricPoints", "Algorithm", "RecombineAll", "RecombinationAlgorithm", "Smoothing", "ElementOrder", "SecondOrderLinear", "SecondOrderIncomplete", "Optimize", "OptimizeNetgen", "OptimizeThreshold", "RandomFactor", "RandomSeed", "AngleToleranceFacetOverlap", "SubdivisionAlgorithm", "TransfiniteTri", "MinimumCirclePoints", "MinimumCurvePoints"]),
+    "Geometry": frozenset(["Tolerance", "ToleranceBoolean", "AutoCoherence", "OCCBooleanPreserveNumbering", "MatchMeshTolerance"]),
 }
-FIELD_TYPES = frozenset("""
-Distance Threshold MathEval MathEvalAniso Box Ball Cylinder Frustum Min Max Constant Restrict
-Param Gradient Mean Laplacian Curvature AttractorAnisoCurve BoundaryLayer
-""".split())
-FIELD_OPTIONS = frozenset("""
-PointsList CurvesList EdgesList SurfacesList FacesList NodesList NumPointsPerCurve Sampling
-InField FieldsList FieldX FieldY FieldZ SizeMin SizeMax DistMin DistMax LcMin LcMax Sigmoid
-StopAtDistMax F M11 M12 M13 M22 M23 M33 VIn VOut XMin XMax YMin YMax ZMin ZMax Thickness
-XCenter YCenter ZCenter XAxis YAxis ZAxis Radius InnerRadius R1 R2 R1_inner R2_inner Z1 Z2 X1
-X2 Y1 Y2 Value IncludeBoundary Kind Delta Size SizeFar Ratio Thickness hwall_n hfar
-IncludeVolumes
-""".split())
+FIELD_TYPES = frozenset(["Distance", "Threshold", "MathEval", "MathEvalAniso", "Box", "Ball", "Cylinder", "Frustum", "Min", "Max", "Constant", "Restrict", "Param", "Gradient", "Mean", "Laplacian", "Curvature", "AttractorAnisoCurve", "BoundaryLayer"])
+FIELD_OPTIONS = frozenset(["PointsList", "CurvesList", "EdgesList", "SurfacesList", "FacesList", "NodesList", "NumPointsPerCurve", "Sampling", "InField", "FieldsList", "FieldX", "FieldY", "FieldZ", "SizeMin", "SizeMax", "DistMin", "DistMax", "LcMin", "LcMax", "Sigmoid", "StopAtDistMax", "F", "M11", "M12", "M13", "M22", "M23", "M33", "VIn", "VOut", "XMin", "XMax", "YMin", "YMax", "ZMin", "ZMax", "Thickness", "XCenter", "YCenter", "ZCenter", "XAxis", "YAxis", "ZAxis", "Radius", "InnerRadius", "R1", "R2", "R1_inner", "R2_inner", "Z1", "Z2", "X1", "X2", "Y1", "Y2", "Value", "IncludeBoundary", "Kind", "Delta", "Size", "SizeFar", "Ratio", "Thickness", "hwall_n", "hfar", "IncludeVolumes"])
 
 _LEXER = re.compile(
     r"(?P<comment>//[^\n]*|/\*.*?(?:\*/|\Z))"
     r'|(?P<string>"(?:[^"\\\n]|\\.)*"?)'
     r"|(?P<num>\d+\.\d*(?:[Ee][-+]?\d+)?|\d*\.\d+(?:[Ee][-+]?\d+)?|\d+[Ee][-+]?\d+|\d+)"
     r"|(?P<name>[A-Za-z_][A-Za-z0-9_]*)"
-    r"|(?P<space>\s+)|(?P<other>.)", re.S)
+    r"|(?P<space>\s+)|(?P<other>.)", re.DOTALL)
 
 
 _RUNS = "runs a shell command"
@@ -99,8 +67,7 @@ def _tokens(text: str):
 
 def refusals(text: str) -> list[tuple[int, str, str]]:
     """(line, name, why) for every name of a .geo script outside the allow-list."""
-    if text.startswith("\ufeff"):
-        text = text[1:]  # a UTF-8 byte-order mark is not a statement
+    text = text.removeprefix("\ufeff")  # a UTF-8 byte-order mark is not a statement
     newlines = [m.start() for m in re.finditer("\n", text)]
     tokens = list(_tokens(text))
     defined: set[str] = set()

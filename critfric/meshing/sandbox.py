@@ -111,7 +111,7 @@ def _limits(space: int) -> None:  # runs in the child, before Python starts
 
     for limit, value in ((resource.RLIMIT_CPU, CPU_SECONDS), (resource.RLIMIT_AS, space),
                          (resource.RLIMIT_FSIZE, OUTPUT_BYTES), (resource.RLIMIT_CORE, 0)):
-        soft, hard = resource.getrlimit(limit)
+        hard = resource.getrlimit(limit)[1]
         value = value if hard == resource.RLIM_INFINITY else min(value, hard)
         resource.setrlimit(limit, (value, hard))
     os.setsid()  # its own process group: a Ctrl-C reaches critfric, which ends it

@@ -273,7 +273,7 @@ class Enumerator:
         du, n = sign * du, sign * n
         return Solution(du[:p], du[p:], n[:p], n[p:], [])
 
-    def _on(self, z: np.ndarray, branch: "Continuum") -> bool:
+    def _on(self, z: np.ndarray, branch: Continuum) -> bool:
         """Whether the point z lies on (the closure of) a branch."""
         Z0 = np.concatenate([branch.point.X, branch.point.Y])
         N = np.array([np.concatenate([d.X, d.Y]) for d in branch.directions]).T

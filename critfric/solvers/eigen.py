@@ -71,7 +71,7 @@ class ContactState:
     gamma: np.ndarray
 
     @classmethod
-    def all_slipping(cls, p: int, gamma: int = 1) -> "ContactState":
+    def all_slipping(cls, p: int, gamma: int = 1) -> ContactState:
         return cls(np.full(p, SLIP, dtype=np.int8), np.full(p, float(gamma)))
 
     @property

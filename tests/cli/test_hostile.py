@@ -325,8 +325,8 @@ def test_crafted_sweep_files_are_messages(tmp_path, edit):
 
 
 # ------------------------------------------------------------------------- fuzzing
-from hypothesis import HealthCheck, given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 SCALE = float(__import__("os").environ.get("CRITFRIC_FUZZ_SCALE", "1"))
 VOCABULARY = sorted(geoscript.STATEMENTS | geoscript.FUNCTIONS) + sorted(geoscript.KNOWN) + [

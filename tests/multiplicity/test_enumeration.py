@@ -103,7 +103,7 @@ def test_branch_of_the_explicit_example_is_the_eigenfunction():
     e = Enumerator(b.construction.problem)(b.friction)
     (br,) = [br for br in e.branches if br.status == ["slip+", "slip+"]]
     X0, Xt = b.construction.X, b.mode.X
-    ends = sorted(((e_.X - X0) @ Xt / (Xt @ Xt) for e_ in br.ends))
+    ends = sorted((e_.X - X0) @ Xt / (Xt @ Xt) for e_ in br.ends)
     np.testing.assert_allclose(ends, [-b.delta0_sides[0], b.delta0_sides[1]], rtol=1e-8)
     d = br.directions[0]
     phi_t = b.mode.phi[b.construction.problem.system.ct]
