@@ -136,10 +136,12 @@ def check_output(path: Path, *, force: bool = False, inputs=()) -> Path:
                         key="output.file")
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
-        raise CaseError(f"directory {str(parent)!r} does not exist", file=str(path),
+        raise CaseError(f"cannot write here: directory {str(parent)!r} does not exist; "
+                        "allowed: a file in an existing writable directory", file=str(path),
                         key="output.file")
     if not os.access(parent, os.W_OK):
-        raise CaseError(f"directory {str(parent)!r} is not writable", file=str(path),
+        raise CaseError(f"cannot write here: directory {str(parent)!r} is not writable; "
+                        "allowed: a file in an existing writable directory", file=str(path),
                         key="output.file")
     return path
 

@@ -57,7 +57,8 @@ def open_sweep(path: Path, *, case, grid, force: bool = False) -> set[tuple]:
     check_output(path, force=True, inputs=case.inputs())
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir() or not os.access(parent, os.W_OK):
-        raise CaseError(f"directory {str(parent)!r} does not exist or is not writable",
+        raise CaseError(f"cannot write here: directory {str(parent)!r} does not exist or is not "
+                        "writable",
                         file=str(path), key="--output")
     if path.exists() and not force:
         try:
