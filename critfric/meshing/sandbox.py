@@ -31,8 +31,8 @@ from ..errors import CaseError, CritfricError, SolverError
 from ..fem.elements import get_element
 from ..fem.mesh import Mesh
 
-CPU_SECONDS = 120  # CPU time a child may use to read or mesh one file
-WALL_SECONDS = 300  # and wall-clock time, start-up included
+CPU_SECONDS = 60  # CPU time a child may use to read or mesh one file
+WALL_SECONDS = 120  # and wall-clock time, start-up included
 MIN_ADDRESS_SPACE = 4 * 2**30  # a child may always map this much (Python, numpy, gmsh)
 MSH_BYTES_PER_BYTE = 64  # and, reading a .msh, this much more per byte of the file
 MAX_INPUT_BYTES = 1 << 30  # a gmsh file larger than this is refused unread
