@@ -54,7 +54,10 @@ def sweep_case(case: Case, sizes) -> tuple[Case, str | None]:
             or m["structured"] or shape in ("mesh", "file")):
         return case, None
     graded = case.with_overrides({"mesh.grading": SWEEP_GRADING})
-    count = len(singular_of(graded))
+    try:
+        count = len(singular_of(graded))
+    except CaseError as exc:
+        raise exc.located(case.source) from None
     return graded, (f"meshes graded to size {SWEEP_GRADING:g} h at the {count} singular points "
                     "(contact ends, state junctions, corners where the boundary condition "
                     "changes, re-entrant corners): the default of sweeps with 3 or more sizes; "
