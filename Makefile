@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DEMO   := demo
 
-.PHONY: all venv demo test test-nofast fuzz shell clean
+.PHONY: all venv demo test test-nofast validate fuzz shell clean
 
 all: test
 
@@ -46,6 +46,12 @@ $(NOFAST)/.installed: pyproject.toml $(STAMP)
 test-nofast: $(NOFAST)/.installed
 	$(NOFAST)/bin/python -c 'import importlib.util as u; assert u.find_spec("pypardiso") is None'
 	$(NOFAST)/bin/python -m pytest -q -n auto
+
+# the long validation study (minutes; not part of `make test`): h -> 0 limits of graded sweeps
+# (unit square, inclined body, mixed contact states; P1, P2, Q1, Q2; five sizes) against
+# references and closed forms, the table of README "Validation"; exit 1 if an error bar misses
+validate: $(STAMP)
+	$(BIN)/python scripts/validate.py $(if $(JOBS),--jobs $(JOBS))
 
 # a shell with the virtual environment active (critfric on PATH); `exit` leaves it
 shell: $(STAMP)

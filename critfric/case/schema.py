@@ -63,7 +63,9 @@ SCHEMA: dict[str, dict[str, c.Key]] = {
         "size": c.Key(POSITIVE, c.REQUIRED, "target element size h (gmsh shapes)"),
         "structured": c.Key(c.boolean, False, "transfinite mesh (4-vertex shapes only)"),
         "grading": c.Key(c.number(0.0, 1.0, lo_open=True), None,
-                       "size factor g in (0, 1] at the ends of Gamma_C"),
+                       "size factor g in (0, 1] at every singular point (ends of Gamma_C, "
+                       "state junctions, corners where the condition changes, re-entrant "
+                       "corners) [sweeps with 3+ sizes: 0.1]"),
     },
     "solve": {
         "method": c.Key(c.choice(*METHODS), "auto", "eigen solver: " + ", ".join(METHODS)),

@@ -12,7 +12,8 @@ from ..errors import CaseError, CritfricError, SolverError
 from ..fem.elements import get_element
 from ..fem.mesh import Mesh, orient
 from ..guards import polygon_footprint
-from .geometry import Polygon, collinear_run, positive_number, validate
+from .geometry import Polygon, positive_number, validate
+from .singular import singular_points, split_at_junctions
 
 #: unstructured meshes above this many estimated vertices are meshed coarser, then split
 #: uniformly (gmsh refine) until they reach ``size``: same quality, ~10x faster for 1e6 DOFs
@@ -51,16 +52,22 @@ def _gmsh_session():
 
 
 def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = False,
-               grading: float | None = None, contact=None) -> Mesh:
+               grading: float | None = None, contact=None, dirichlet=(),
+               junctions=()) -> Mesh:
     """Mesh ``poly`` with gmsh (built-in kernel); one edge group per edge name.
 
     size      : target element size (edge length).
     element   : "P1", "P2" (straight 6-node triangles), "Q1", "Q2" (9-node quads).
     structured: transfinite mesh of a 4-vertex polygon, ceil(length / size) subdivisions per
                 edge (the larger count of each pair of opposite edges).
-    grading   : g in (0, 1]: size g*size at both ends of the straight run of the ``contact``
-                edges, growing linearly to ``size`` at half the run's length from them.
+    grading   : g in (0, 1]: size g*size at every singular point (:mod:`.singular`: the ends
+                of the straight run of the ``contact`` edges, the state ``junctions`` on it,
+                corners where the condition changes, re-entrant corners), growing linearly to
+                ``size`` at half the run's length from them; junctions become mesh nodes.
     contact   : edge name or names of the contact boundary (needed by ``grading``).
+    dirichlet : Dirichlet edge names (their corners with other conditions are singular).
+    junctions : arc lengths along Gamma_C where the contact state changes
+                (:func:`.singular.state_junctions`).
     """
     import gmsh
 
@@ -79,21 +86,16 @@ def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = F
             raise CaseError("grading is not available for structured meshes", key="mesh.grading")
         if not contact:
             raise CaseError("grading needs the contact edges", key="mesh.grading")
-        names = [contact] if isinstance(contact, str) else list(contact)
-        unknown = sorted(set(names) - set(poly.edge_names))
-        if unknown:
-            raise CaseError(f"unknown edge name(s) {unknown}; edges are "
-                            f"{list(poly.group_names)}", key="boundary.contact")
-        start, end, _ = collinear_run(poly.segments[poly.edge_indices(names)],
-                                      key="boundary.contact")
-        ends = [int(np.argmin(np.linalg.norm(poly.vertices - p, axis=1))) for p in (start, end)]
-        run_length = float(np.linalg.norm(end - start))
+        ends = singular_points(poly, contact, dirichlet, junctions)
+        run_length = ends.run_length
     n_refine = 0 if structured else _refinements(poly, h, element)
     # gmsh meshes the body scaled to unit extent: its tolerances are absolute, so the mesh
     # (and every coefficient) would otherwise depend on the length unit
     # (canonical: rounded to 2^-40 and 12 digits, so that one body in two units gives the
     # same numbers to gmsh, not numbers one ulp apart that its smoothing would amplify)
     unit = float(np.ptp(poly.vertices, axis=0).max())
+    if ends is not None:  # junctions inside an edge become vertices (mesh nodes)
+        poly, tags = split_at_junctions(poly, ends)
     poly = Polygon(np.round(poly.vertices / unit * 2.0**40) / 2.0**40, poly.edge_names)
     h, h0 = _canonical(h / unit), _canonical(h * 2**n_refine / unit)
     if ends is not None:
@@ -114,7 +116,7 @@ def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = F
                     gmsh.option.setNumber("Mesh.RecombinationAlgorithm", 3)  # blossom full-quad
                     gmsh.model.mesh.setRecombine(2, 1)
                 if ends is not None:
-                    _set_grading(ends, g * h0, h0, 0.5 * run_length)
+                    _set_grading(tags + 1, g * h0, h0, 0.5 * run_length)
             gmsh.model.mesh.generate(2)
             for _ in range(n_refine):
                 gmsh.model.mesh.refine()
@@ -175,12 +177,12 @@ def _set_transfinite(poly: Polygon, h: float, element: str) -> None:
         gmsh.model.mesh.setRecombine(2, 1)
 
 
-def _set_grading(end_points, h_min: float, h_max: float, dist_max: float) -> None:
+def _set_grading(point_tags, h_min: float, h_max: float, dist_max: float) -> None:
     import gmsh
 
     field = gmsh.model.mesh.field
     dist = field.add("Distance")
-    field.setNumbers(dist, "PointsList", [i + 1 for i in end_points])
+    field.setNumbers(dist, "PointsList", [int(t) for t in point_tags])
     thr = field.add("Threshold")
     field.setNumber(thr, "InField", dist)
     field.setNumber(thr, "SizeMin", h_min)

@@ -25,7 +25,7 @@ from pathlib import Path
 from ..case.schema import Case, from_dict
 from ..errors import CaseError
 from ..files import sweepfile
-from ..solve import Prepared, preflight, prepare, solve_prepared
+from ..solve import Prepared, preflight, prepare, singular_of, solve_prepared
 from ..stability import stability_prepared
 from . import workers
 from .extrapolate import Limit, limits_of
@@ -41,6 +41,27 @@ from .grid import (
 )
 
 CACHE_SIZE = 2  # prepared systems kept per worker process
+#: [mesh] grading of a sweep that extrapolates (3+ sizes) when the case sets none
+SWEEP_GRADING = 0.1
+
+
+def sweep_case(case: Case, sizes) -> tuple[Case, str | None]:
+    """The case a sweep over ``sizes`` meshes: with three sizes or more (h -> 0 limits) and
+    no ``[mesh] grading``, gmsh meshes are graded at every singular point (size
+    ``SWEEP_GRADING`` h there); the second value is a note saying so (None: unchanged)."""
+    m, shape = case.mesh, case.geometry["shape"]
+    if (len([s for s in sizes if s is not None]) < 3 or m["grading"] is not None
+            or m["structured"] or shape in ("mesh", "file")):
+        return case, None
+    graded = case.with_overrides({"mesh.grading": SWEEP_GRADING})
+    try:
+        count = len(singular_of(graded))
+    except CaseError as exc:
+        raise exc.located(case.source) from None
+    return graded, (f"meshes graded to size {SWEEP_GRADING:g} h at the {count} singular points "
+                    "(contact ends, state junctions, corners where the boundary condition "
+                    "changes, re-entrant corners): the default of sweeps with 3 or more sizes; "
+                    "--grading 1 for uniform meshes")
 
 
 # ------------------------------------------------------------------------------ the grid
@@ -185,6 +206,7 @@ def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = 
     """
 
     t0 = time.perf_counter()
+    case = sweep_case(case, grid.size)[0]
     path = Path(output)
     client = workers.connect_dask(scheduler) if scheduler else None
     try:
@@ -288,6 +310,8 @@ def make_grid(case: Case, *, nu: str | None = None, size: str | None = None,
     """
     nus, notes = parse_nu(nu) if nu is not None else ([case.material["nu"]], [])
     sizes = parse_sizes(size) if size is not None else [case.mesh["size"]]
+    case, graded = sweep_case(case, sizes)
+    notes = notes + ([graded] if graded else [])
     elements = parse_elements(element) if element is not None else [case.mesh["element"]]
     total = len(nus) * len(sizes) * len(elements)
     if total > MAX_POINTS:

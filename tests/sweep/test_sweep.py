@@ -214,20 +214,42 @@ def test_richardson_recovers_limit_and_order_of_a_power_law(h):
     limit, order, error, status = family_limit(h, f)
     assert status == "ok"
     assert abs(order - 1.5) < 0.02 and abs(limit - 2.0) < 1e-4
-    assert abs(limit - 2.0) <= error <= abs(f[-1] - limit)  # honest, and below the correction
+    # honest, and not much above the correction
+    assert abs(limit - 2.0) <= error <= 1.5 * abs(f[-1] - limit)
     exact = [2.0 + 0.3 * x**1.5 for x in h[:3]]
     assert observed_order(h[:3], exact) == pytest.approx(1.5, rel=1e-9)
 
 
 @pytest.mark.parametrize("f,why", [
-    ([1.0, 1.1, 1.05, 1.08], "do not shrink"),  # oscillating
-    ([1.0, 1.1, 1.1 + 0.1 / 1.2, 1.1 + 0.1 / 1.2 + 0.1 / 1.44], "order 0.26"),  # drifting
+    ([1.0, 1.1, 1.05, 1.08], "change by"),  # oscillating by 3-5%
+    ([1.0, 1.1, 1.2, 1.3], "order below 0.5"),  # drifting
+    ([1.0, 1.1, 1.1 + 0.1 / 1.2, 1.1 + 0.1 / 1.2 + 0.1 / 1.44], "change by"),  # order 0.26
     ([1.0, math.nan, math.nan, 1.011], "only 2"),
-    ([5.0, 3.0, 2.0, 1.8], "inconsistent"),
+    ([5.0, 3.0, 2.0, 1.8], "change by"),  # 10% at the finest sizes
 ])
 def test_not_converged_families_get_no_limit(f, why):
     limit, order, error, status = family_limit([0.1, 0.05, 0.025, 0.0125], f)
     assert math.isnan(limit) and status.startswith("not converged") and why in status, status
+
+
+def test_noisy_families_that_converge_keep_a_limit_with_an_honest_error():
+    """Mesh noise on a converging family (P1 on graded unit squares, measured: the finest
+    values 1.944490, 1.944775, 1.944739 for a limit 1.9447114) is not a reason to refuse."""
+    h = [0.1, 0.05, 0.025, 0.0125]
+    limit, order, error, status = family_limit(h, [1.945276, 1.944490, 1.944775, 1.944739],
+                                               "P1")
+    assert status == "ok" and abs(limit - 1.9447114) <= error < 2e-3
+    # measured inclined-body P2 values (graded 0.1): the old estimate missed the reference
+    f = [0.585033730, 0.585022737, 0.585019227, 0.585018007]
+    limit, order, error, status = family_limit(h, f, "P2")
+    assert status == "ok" and abs(limit - 0.5850169) <= error < 2e-6 and 1.2 < order < 2
+
+
+def test_orders_above_what_the_element_reaches_widen_the_error():
+    h = [0.1, 0.05, 0.025, 0.0125]
+    f = [2.0 + 0.1 * x**6 for x in h]  # "order 6" for P1: capped at 3
+    _, order, error, status = family_limit(h, f, "P1")
+    assert status == "ok" and order == pytest.approx(3.0) and error >= 3 * np.ptp(f[-3:])
 
 
 def _rows(element, values, nu=0.3):
@@ -251,17 +273,32 @@ def test_elements_that_disagree_are_not_converged():
 
 
 def test_unit_square_limits_of_p1_and_p2_match_a_much_finer_solve(tmp_path):
-    """Done-when check at CI sizes: nu = 0.3, four sizes each; reference Q2 at h = 1/80."""
+    """Done-when check at CI sizes: nu = 0.3, four sizes each on the sweeps' default graded
+    meshes; the reference 1.9447114 is the graded Q2 family (make validate)."""
     case = critfric.load_case("unit-square")
     limits = {}
     for element, sizes in (("P1", "0.1,0.05,0.025,0.0125"), ("P2", "0.2,0.1,0.05,0.025")):
         grid = make_grid(case, nu="0.3", size=sizes, element=element)
         sweep = run_sweep(case, grid, output=tmp_path / f"{element}.h5", jobs=1)
-        (lim,) = [m for m in sweep.limits if m.family == "positive"]
-        assert lim.status == "ok" and 1.1 < lim.order < 1.6, lim
-        limits[element] = lim
+        for lim in sweep.limits:
+            assert lim.status == "ok", lim
+            assert abs(abs(lim.limit) - 1.9447114) <= lim.error, lim  # the error bar holds
+        limits[element] = next(m for m in sweep.limits if m.family == "positive")
+    assert 1.2 < limits["P2"].order < 1.7 and limits["P2"].error < 2e-5
     fine = critfric.solve_case(case, overrides={"mesh.element": "Q2", "mesh.size": 0.0125})
-    for lim in limits.values():
-        assert abs(lim.limit - fine.critical) < 5e-4, (lim, fine.critical)
-    assert abs(limits["P2"].limit - fine.critical) < 1e-4
     assert abs(fine.critical - 1.94472) < 5e-5
+
+
+def test_sweeps_that_extrapolate_grade_their_meshes_by_default(tmp_path):
+    from critfric.sweep.runner import SWEEP_GRADING
+
+    case = critfric.load_case("unit-square")
+    grid = make_grid(case, nu="0.3", size="0.4,0.3,0.2", element="P1")
+    assert any("graded" in n and "4 singular points" in n for n in grid.notes), grid.notes
+    assert not any("graded" in n for n in make_grid(case, nu="0.3", size="0.4,0.2").notes)
+    uniform = case.with_overrides({"mesh.grading": 1.0})
+    assert not any("graded" in n for n in make_grid(uniform, nu="0.3", size="0.4,0.3,0.2").notes)
+    sweep = run_sweep(case, grid, output=tmp_path / "g.h5", jobs=1)
+    graded = critfric.solve_case(case, overrides={"mesh.size": 0.2, "mesh.grading": SWEEP_GRADING})
+    assert sweep.rows[-1]["positive"][0] == pytest.approx(graded.critical, abs=1e-12)
+    assert sweep.rows[-1]["n_dofs"] == graded.n_dofs

@@ -1,0 +1,132 @@
+"""The long validation study of `make validate` (not part of `make test`): h -> 0 limits of
+sweeps on graded meshes against known values, per case and element.
+
+Every case is swept at nu = 0.3 over five sizes with P1, P2, Q1 and Q2 on meshes graded at
+every singular point (the sweep default, size 0.1 h there); the table gives each family's
+limit, error estimate and observed order next to the reference. Exit status 1 if a limit
+called converged misses its reference by more than its error estimate, or a closed form fails.
+
+References (nu = 0.3):
+- four triangles, one triangle: the closed forms of the paper (no h: solved as given);
+- unit square: 1.9447114, the Q2 family graded 0.1 at h = 0.05, 0.025, 0.0125 (1.944713631,
+  1.944711991, 1.944711573; steps shrink 3.9x: limit 1.9447114 +- 2e-7);
+- inclined body: 0.5850169, the Q2 family graded 0.1 at h = 0.025, 0.0125, 0.00625
+  (1.1 M DOFs: 0.585019771, 0.585018086, 0.585017407; limit 0.5850169 +- 2e-7).
+- mixed states (a 2 x 1 block stuck on [0, 0.5], slip + on [0.5, 1.3], slip - on [1.3, 2] of
+  its base): no reference; its families must agree between elements.
+
+Usage: python scripts/validate.py [--jobs N] [--out DIR] [--markdown]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import critfric
+from critfric.case.schema import from_dict
+from critfric.sweep import make_grid, run_sweep
+
+NU = 0.3
+SIZES = "0.2,0.1,0.05,0.025,0.0125"
+ELEMENTS = "P1,P2,Q1,Q2"
+MIXED = {"geometry": {"shape": "rectangle", "width": 2.0, "height": 1.0},
+         "mesh": {"size": 0.1, "element": "P1"},
+         "contact": {"rules": [{"from": 0.0, "to": 0.5, "status": "stuck"},
+                               {"from": 0.5, "to": 1.3, "status": "slip", "gamma": 1},
+                               {"from": 1.3, "to": 2.0, "status": "slip", "gamma": -1}]}}
+#: (case, family) -> reference |eigenvalue| at nu = 0.3 (see the module docstring)
+REFERENCE = {("unit-square", "positive"): 1.9447114, ("unit-square", "negative"): 1.9447114,
+             ("inclined-body", "positive"): 0.5850169}
+REFERENCE_ERROR = {"unit-square": 2e-7, "inclined-body": 2e-7}
+
+
+def closed_forms() -> list[tuple[str, float, float]]:
+    """(case, computed, closed form) of the cases without h."""
+    four = math.sqrt((1 - NU) * (5 - 8 * NU) / (NU * (3 - 4 * NU)))
+    out = []
+    for name, exact in (("four-triangles", four), ("one-triangle", 3 - 4 * NU)):
+        result = critfric.solve_case(name, overrides={"material.nu": NU})
+        out.append((name, result.critical, exact))
+    return out
+
+
+def study(out: Path, jobs: int) -> list[dict]:
+    rows = []
+    cases = {"unit-square": critfric.load_case("unit-square"),
+             "inclined-body": critfric.load_case("inclined-body"),
+             "mixed-states": from_dict(MIXED, name="mixed_states")}
+    for name, case in cases.items():
+        t0 = time.perf_counter()
+        grid = make_grid(case, nu=str(NU), size=SIZES, element=ELEMENTS)
+        sweep = run_sweep(case, grid, output=out / f"{name}.h5", jobs=jobs, force=True)
+        for lim in sweep.limits:
+            ref = REFERENCE.get((name, lim.family), math.nan)
+            ref = ref if lim.family == "positive" else -ref  # the limits carry the sign
+            rows.append({"case": name, "element": lim.element, "family": lim.family,
+                         "limit": lim.limit, "error": lim.error, "order": lim.order,
+                         "reference": ref, "status": lim.status})
+        print(f"{name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr)
+    return rows
+
+
+def _num(v, fmt):
+    return "-" if v is None or not math.isfinite(v) else fmt % v
+
+
+def table(rows: list[dict], exact: list, markdown: bool) -> tuple[str, int]:
+    misses = 0
+    head = ["case", "element", "family", "limit", "error", "order", "reference",
+            "|limit - ref|", "verdict"]
+    lines = []
+    for r in rows:
+        ok = r["status"] == "ok"
+        gap = abs(r["limit"] - r["reference"]) if ok else math.nan
+        if ok and math.isfinite(gap):
+            held = gap <= r["error"]
+            misses += not held
+            verdict = "within" if held else "MISSED"
+        elif ok:
+            verdict = "converged"
+        else:
+            verdict = "flagged: " + r["status"].removeprefix("not converged: ").split(" (")[0]
+        lines.append([r["case"], r["element"], r["family"], _num(r["limit"], "%.9f"),
+                      _num(r["error"], "%.1e"), _num(r["order"], "%.2f"),
+                      _num(r["reference"], "%.7f"), _num(gap, "%.1e"), verdict])
+    for name, value, ref in exact:
+        held = abs(value - ref) <= 1e-12 * ref
+        misses += not held
+        lines.append([name, "P1", "positive", f"{value:.9f}", "(no h)", "-", f"{ref:.9f}",
+                      f"{abs(value - ref):.1e}", "exact" if held else "MISSED"])
+    if markdown:
+        text = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        text += ["| " + " | ".join(line) + " |" for line in lines]
+    else:
+        widths = [max(len(x) for x in col) for col in zip(head, *lines)]
+        text = ["  ".join(x.ljust(w) for x, w in zip(head, widths))]
+        text += ["  ".join(x.ljust(w) for x, w in zip(line, widths)) for line in lines]
+    return "\n".join(text), misses
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--jobs", type=int, default=None)
+    parser.add_argument("--out", type=Path, default=None, help="keep the sweep files here")
+    parser.add_argument("--markdown", action="store_true", help="a Markdown table")
+    args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = args.out or Path(tmp)
+        out.mkdir(parents=True, exist_ok=True)
+        rows = study(out, args.jobs)
+    text, misses = table(rows, closed_forms(), args.markdown)
+    print(text)
+    print(f"\n{misses} limit(s) outside their error estimate", file=sys.stderr)
+    return 1 if misses else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
