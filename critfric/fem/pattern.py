@@ -55,8 +55,10 @@ class BlockPattern:
         # DOF level: block q of node row i starts at 4 ptr[i] + 2 (q - ptr[i]) in DOF row 2i;
         # DOF row 2i + 1 starts 2 degree[i] entries later
         row = np.repeat(np.arange(n), degree)
-        self._start = 2 * (np.arange(self.nnz) + ptr[row])
-        self._row_length = 2 * degree[row]
+        start, row_length = 2 * (np.arange(self.nnz) + ptr[row]), 2 * degree[row]
+        del row
+        self._at = [[start + k * row_length + m for m in range(2)] for k in range(2)]
+        del start, row_length
         itype = np.int32 if 4 * self.nnz < np.iinfo(np.int32).max else np.int64
         indptr = np.empty(2 * n + 1, dtype=itype)
         indptr[0:-1:2], indptr[1::2] = 4 * ptr[:-1], 4 * ptr[:-1] + 2 * degree
@@ -64,7 +66,7 @@ class BlockPattern:
         indices = np.empty(4 * self.nnz, dtype=itype)
         for k in range(2):
             for m in range(2):
-                indices[self._start + k * self._row_length + m] = 2 * col + m
+                indices[self._at[k][m]] = 2 * col + m
         self.indptr, self.indices = indptr, indices
 
     def block_sums(self, values: np.ndarray) -> np.ndarray:
@@ -77,7 +79,7 @@ class BlockPattern:
         data = np.empty(4 * self.nnz)
         for k in range(2):
             for m in range(2):
-                data[self._start + k * self._row_length + m] = blocks[k][m]
+                data[self._at[k][m]] = blocks[k][m]
         n = 2 * self.n_nodes
         A = sp.csr_matrix((data, self.indices.copy(), self.indptr.copy()), shape=(n, n))
         A.has_sorted_indices = True
