@@ -108,7 +108,9 @@ def contact_geometry(mesh: Mesh, contact: list[str], dirichlet_nodes: np.ndarray
             f"{np.max(np.abs(offset)):.3g} off the line); allowed: collinear edges only",
             file=source, key="boundary.contact")
     # Orient n outwards: cells with an edge on Gamma_C lie on the inner side.
-    touching = np.isin(mesh.cells[:, :get_element(mesh.element).n_vertices], on_line).sum(axis=1) >= 2
+    on = np.zeros(mesh.n_nodes, dtype=bool)
+    on[on_line] = True
+    touching = on[mesh.cells[:, :get_element(mesh.element).n_vertices]].sum(axis=1) >= 2
     side = (mesh.points[mesh.cells[touching]].mean(axis=1) - start) @ normal
     if touching.sum() == 0 or not (np.all(side > 0) or np.all(side < 0)):
         raise CaseError(f"edges {contact} are not on the boundary of the body (cells on both "
