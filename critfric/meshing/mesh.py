@@ -13,7 +13,7 @@ from ..fem.elements import get_element
 from ..fem.mesh import Mesh, orient
 from ..guards import polygon_footprint
 from .geometry import Polygon, collinear_run, positive_number, validate
-from .refine import second_order, split
+from .refine import renumber, second_order, split
 
 #: unstructured meshes above this many estimated vertices are meshed coarser, then split
 #: uniformly (:func:`.refine.split`) until they reach ``size``: same quality, ~10x faster
@@ -130,6 +130,8 @@ def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = F
         mesh = split(mesh)
     if linear != element:
         mesh = second_order(mesh, element)
+    if n_refine:  # a large mesh: neighbours numbered near each other
+        mesh = renumber(mesh)
     return dataclasses.replace(mesh, points=mesh.points * unit)
 
 
