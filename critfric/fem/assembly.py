@@ -13,6 +13,7 @@ import scipy.sparse as sp
 from ..errors import CaseError
 from .elements import get_element
 from .mesh import Mesh
+from .pattern import BlockPattern
 
 
 def lame(E: float, nu: float) -> tuple[float, float]:
@@ -34,7 +35,10 @@ def _jacobians(mesh: Mesh, dref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             f"cells have shape {cells.shape}; element {element.name} needs {element.n_local} nodes"
         )
     X = np.asarray(mesh.points, dtype=float)[cells]  # (n_cells, n_local, 2)
-    J = np.einsum("cai,aqj->cqij", X, dref, optimize=True)
+    J = np.empty((len(cells), dref.shape[1], 2, 2))
+    for i in range(2):  # 2 x 2 plain matrix products, not a batch of tiny ones
+        for j in range(2):
+            J[..., i, j] = X[:, :, i] @ dref[:, :, j]
     det = J[..., 0, 0] * J[..., 1, 1] - J[..., 0, 1] * J[..., 1, 0]
     # scale-free test: det J / |J|_F^2 <= 1/2, and is ~0 for a degenerate cell
     bad = np.any(det <= 1e-12 * np.square(J).sum(axis=(-2, -1)), axis=1)
@@ -58,35 +62,39 @@ def cell_geometry(mesh: Mesh, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     inv = np.empty_like(J)  # inv[c, q, j, i] = d xi_j / d x_i
     inv[..., 0, 0], inv[..., 1, 1] = J[..., 1, 1] / det, J[..., 0, 0] / det
     inv[..., 0, 1], inv[..., 1, 0] = -J[..., 0, 1] / det, -J[..., 1, 0] / det
-    grads = np.matmul(dref.transpose(1, 0, 2), inv)  # sum_j dref[a, q, j] inv[c, q, j, i]
+    grads = np.empty(det.shape + (dref.shape[0], 2))  # sum_j dref[a, q, j] inv[c, q, j, i]
+    d0, d1 = dref[:, :, 0].T, dref[:, :, 1].T  # (n_pts, n_local)
+    for i in range(2):
+        grads[..., i] = d0 * inv[..., 0, i, None] + d1 * inv[..., 1, i, None]
     return values, det, grads
 
 
 def assemble_elasticity(mesh: Mesh) -> tuple[sp.csr_matrix, sp.csr_matrix]:
-    """CSR matrices ``(K_lam, K_G)`` over all 2 * n_nodes DOFs with ``K = lam K_lam + G K_G``."""
+    """CSR matrices ``(K_lam, K_G)`` over all 2 * n_nodes DOFs with ``K = lam K_lam + G K_G``,
+    assembled into the mesh's precomputed pattern (:class:`.pattern.BlockPattern`)."""
     element = get_element(mesh.element)
     if element.name != "P1":  # also reject cells inverted at nodes (P1: J is constant)
         _jacobians(mesh, element.shape(element.doflocs)[1])
     xi, w = element.quadrature()
     _, det, grads = cell_geometry(mesh, xi)
     wdet = det * w  # (n_cells, n_qp)
-    n_cells, nl = grads.shape[0], element.n_local
-    n_dofs = 2 * mesh.n_nodes
-    itype = _index_dtype(n_dofs)
-    dofs = 2 * np.asarray(mesh.cells, dtype=itype)[:, :, None] + np.arange(2, dtype=itype)
-    dofs = dofs.reshape(n_cells, 2 * nl)
-    rows = np.repeat(dofs, 2 * nl, axis=1).ravel()
-    cols = np.tile(dofs, (1, 2 * nl)).ravel()
-    shape = (n_dofs, n_dofs)
-    # K_lam[(a,k),(b,l)] = int d_k N_a d_l N_b; index 2a+k of g is d_k N_a
-    g = grads.reshape(n_cells, -1, 2 * nl)
-    local = np.matmul(g.transpose(0, 2, 1) * wdet[:, None, :], g)
-    del g, grads
-    K_lam = sp.coo_matrix((local.ravel(), (rows, cols)), shape=shape).tocsr()
-    del local, rows, cols
-    # K_G[(a,k),(b,l)] = int (delta_kl grad N_a . grad N_b + d_l N_a d_k N_b): node block by
+    pattern = BlockPattern(mesh.cells, mesh.n_nodes)
+    # node block (a, b) of K_lam: B_km = int d_k N_a d_m N_b, summed over the cells
+    B = [[pattern.block_sums(_gradient_products(grads, wdet, k, m)) for m in range(2)]
+         for k in range(2)]
+    del grads
+    # K_G[(a,k),(b,m)] = int (delta_km grad N_a . grad N_b + d_m N_a d_k N_b): node block by
     # node block, K_G = B^T + tr(B) I for the 2 x 2 block B of K_lam (same sparsity)
-    return K_lam, _shear_part(K_lam)
+    (b00, b01), (b10, b11) = B
+    return pattern.csr(B), pattern.csr([[2 * b00 + b11, b10], [b01, b00 + 2 * b11]])
+
+
+def _gradient_products(grads: np.ndarray, wdet: np.ndarray, k: int, m: int) -> np.ndarray:
+    """(n_cells, n_local, n_local): sum over quadrature points of w det d_k N_a d_m N_b."""
+    out = 0.0
+    for q in range(wdet.shape[1]):
+        out = out + (grads[:, q, :, k] * wdet[:, q, None])[:, :, None] * grads[:, q, None, :, m]
+    return out
 
 
 def assemble_mass(mesh: Mesh, density: float = 1.0) -> sp.csr_matrix:
@@ -107,27 +115,6 @@ def assemble_mass(mesh: Mesh, density: float = 1.0) -> sp.csr_matrix:
     return sp.coo_matrix((np.concatenate([data, data]),
                           (np.concatenate([2 * rows, 2 * rows + 1]),
                            np.concatenate([2 * cols, 2 * cols + 1]))), shape=(n, n)).tocsr()
-
-
-def _shear_part(K_lam: sp.csr_matrix) -> sp.csr_matrix:
-    """K_G from K_lam: every 2 x 2 node block B becomes B^T + tr(B) I.
-
-    Rows 2i and 2i+1 of an assembled K_lam hold the same columns, and (sorted) the two
-    columns of a node are adjacent: the four entries of a block sit at q, q + 1 (row 2i)
-    and q + d, q + d + 1 (row 2i + 1, d = its offset from row 2i).
-    """
-    K_lam.sort_indices()
-    ip, cols, B = K_lam.indptr, K_lam.indices, K_lam.data
-    length = np.diff(ip)
-    if not (np.array_equal(length[0::2], length[1::2]) and np.all(length % 2 == 0)):
-        raise RuntimeError("internal: K_lam is not made of full 2 x 2 node blocks")
-    row = np.repeat(np.arange(len(length)), length)
-    q00 = np.flatnonzero((row % 2 == 0) & (cols % 2 == 0))
-    q10 = q00 + length[row[q00]]
-    b00, b01, b10, b11 = B[q00], B[q00 + 1], B[q10], B[q10 + 1]
-    G = np.empty_like(B)
-    G[q00], G[q00 + 1], G[q10], G[q10 + 1] = 2 * b00 + b11, b10, b01, b00 + 2 * b11
-    return sp.csr_matrix((G, cols.copy(), ip.copy()), shape=K_lam.shape)
 
 
 def cell_strain(mesh: Mesh, u: np.ndarray, xi: np.ndarray) -> np.ndarray:

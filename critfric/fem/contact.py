@@ -108,7 +108,9 @@ def contact_geometry(mesh: Mesh, contact: list[str], dirichlet_nodes: np.ndarray
             f"{np.max(np.abs(offset)):.3g} off the line); allowed: collinear edges only",
             file=source, key="boundary.contact")
     # Orient n outwards: cells with an edge on Gamma_C lie on the inner side.
-    touching = np.isin(mesh.cells[:, :get_element(mesh.element).n_vertices], on_line).sum(axis=1) >= 2
+    on = np.zeros(mesh.n_nodes, dtype=bool)
+    on[on_line] = True
+    touching = on[mesh.cells[:, :get_element(mesh.element).n_vertices]].sum(axis=1) >= 2
     side = (mesh.points[mesh.cells[touching]].mean(axis=1) - start) @ normal
     if touching.sum() == 0 or not (np.all(side > 0) or np.all(side < 0)):
         raise CaseError(f"edges {contact} are not on the boundary of the body (cells on both "
@@ -142,6 +144,70 @@ def rotation(n_nodes: int, nodes: np.ndarray, normal, tangent) -> sp.csr_matrix:
                          shape=(2 * n_nodes, 2 * n_nodes)).tocsr()
 
 
+def rotated(K: sp.spmatrix, nodes: np.ndarray, normal, tangent, *others) -> list:
+    """Q^T K Q (Q: :func:`rotation`) without forming Q, for K and every matrix of ``others``
+    (same sparsity as K): the two rows, then the two columns, of each contact node combined
+    in place by the same two-term sums as the sparse products (the same numbers; exact zeros
+    stay stored). K must hold full 2 x 2 node blocks, as an assembled stiffness does."""
+    mats = [sp.csr_matrix(A, copy=True) for A in (K, *others)]
+    for A in mats:
+        A.sum_duplicates()  # sorted: the columns 2j and 2j + 1 of a block are adjacent
+    ip, col = mats[0].indptr, mats[0].indices
+    if any(not (np.array_equal(A.indptr, ip) and np.array_equal(A.indices, col))
+           for A in mats[1:]):
+        raise ValueError("rotated: the matrices must have the same sparsity")
+    R = np.column_stack([normal, tangent])  # R[a, b]: xy component a of n (b = 0), t (b = 1)
+    length = ip[2 * nodes + 1] - ip[2 * nodes]
+    contact = np.zeros(K.shape[1], dtype=bool)
+    contact[2 * nodes] = True
+    col0 = np.flatnonzero(contact[col])  # entries of the columns 2j of the contact nodes
+    if (np.any(ip[2 * nodes + 2] - ip[2 * nodes + 1] != length)
+            or np.any(col[col0 + 1] != col[col0] + 1)):
+        raise RuntimeError("internal: the stiffness is not made of full 2 x 2 node blocks")
+    row0 = _ranges(ip[2 * nodes], length)  # entries of the rows 2i of the contact nodes
+    for A in mats:
+        _combine(A.data, row0, row0 + np.repeat(length, length), R)  # rows 2i, 2i + 1
+        _combine(A.data, col0, col0 + 1, R)  # then columns 2j, 2j + 1
+    return mats
+
+
+def _ranges(start: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """The concatenated index ranges start[k] .. start[k] + length[k] - 1."""
+    return np.repeat(start - np.cumsum(length) + length, length) + np.arange(length.sum())
+
+
+def _combine(data: np.ndarray, e0: np.ndarray, e1: np.ndarray, R: np.ndarray) -> None:
+    """(data[e0], data[e1]) <- R^T (data[e0], data[e1]): xy components -> n, t."""
+    x0, x1 = data[e0], data[e1]
+    data[e0] = R[0, 0] * x0 + R[1, 0] * x1
+    data[e1] = R[0, 1] * x0 + R[1, 1] * x1
+
+
+def _split_free(mats: list, fixed: np.ndarray) -> list:
+    """(A_FF, A_FD) of each matrix A of ``mats`` (one sparsity, sorted CSR): its free rows
+    (``fixed``: mask of the Dirichlet DOFs) with its free columns, and with its Dirichlet
+    columns, renumbered in order. The Dirichlet rows and columns hold few entries: they are
+    found by index and dropped in one pass."""
+    ip, col = mats[0].indptr, mats[0].indices
+    free, itype = ~fixed, col.dtype
+    m, d = int(free.sum()), int(fixed.sum())
+    in_fixed_col = np.flatnonzero(fixed[col])
+    fixed_rows = np.flatnonzero(fixed)
+    dropped = np.union1d(in_fixed_col, _ranges(ip[fixed_rows], np.diff(ip)[fixed_rows]))
+    row_of = lambda entries: np.searchsorted(ip, entries, side="right") - 1
+    keep = np.ones(len(col), dtype=bool)
+    keep[dropped] = False
+    count = np.diff(ip) - np.bincount(row_of(dropped), minlength=len(ip) - 1)
+    ff_ptr = np.concatenate([[0], np.cumsum(count[free])]).astype(itype)
+    ff_col = (np.cumsum(free) - 1).astype(itype)[col[keep]]
+    fd = in_fixed_col[free[row_of(in_fixed_col)]]  # Dirichlet columns of the free rows
+    fd_ptr = np.concatenate([[0], np.cumsum(np.bincount(np.cumsum(free)[row_of(fd)] - 1,
+                                                        minlength=m))]).astype(itype)
+    fd_col = (np.cumsum(fixed) - 1).astype(itype)[col[fd]]
+    return [(sp.csr_matrix((A.data[keep], ff_col, ff_ptr), shape=(m, m)),
+             sp.csr_matrix((A.data[fd], fd_col, fd_ptr), shape=(m, d))) for A in mats]
+
+
 def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix, *, contact: list[str],
                    dirichlet: list[str], source: str = "") -> ContactSystem:
     """Classify the boundary nodes and restrict the stiffness parts to the free DOFs."""
@@ -158,12 +224,13 @@ def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix, *, contact:
     free = np.flatnonzero(~fixed)
     position = np.full(n_dof, -1, dtype=np.int64)
     position[free] = np.arange(len(free))
-    Q = rotation(mesh.n_nodes, nodes, normal, tangent)
-    QT = Q.T.tocsr()
-    rows = [(QT @ K @ Q).tocsr()[free] for K in (K_lam, K_G)]
-    parts = [r[:, free].tocsr() for r in rows]
     fixed_dofs = np.flatnonzero(fixed)
-    coupling = [r[:, fixed_dofs].tocsr() for r in rows]  # Q is the identity on Dirichlet DOFs
+    # K_FF and K_FD (Q is the identity on the Dirichlet DOFs) of Q^T K Q, for each part
+    try:  # assembled parts share one sparsity: one pass of index work for both
+        groups = [rotated(K_lam, nodes, normal, tangent, K_G)]
+    except ValueError:
+        groups = [rotated(K, nodes, normal, tangent) for K in (K_lam, K_G)]
+    parts, coupling = zip(*(ff_fd for mats in groups for ff_fd in _split_free(mats, fixed)))
     return ContactSystem(mesh=mesh, free=free, nodes=nodes, normal=normal, tangent=tangent,
                          cn=position[2 * nodes], ct=position[2 * nodes + 1],
                          K_lam=parts[0], K_G=parts[1], fixed=fixed_dofs,

@@ -42,8 +42,11 @@ class Mesh:
     @property
     def diameter(self) -> float:
         """h: the largest cell diameter (longest distance between two vertices of a cell)."""
-        v = self.points[self.cells[:, :get_element(self.element).n_vertices]]
-        return float(np.linalg.norm(v[:, :, None, :] - v[:, None, :, :], axis=-1).max())
+        nv = get_element(self.element).n_vertices
+        a, b = np.triu_indices(nv, k=1)  # each vertex pair once: sqrt of the largest square
+        v = self.points[self.cells[:, :nv]]
+        d = v[:, a] - v[:, b]
+        return float(np.sqrt((d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]).max()))
 
     def edge_nodes(self, names) -> np.ndarray:
         """Sorted unique node indices on the boundary groups ``names``."""

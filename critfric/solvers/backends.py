@@ -32,6 +32,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..errors import SolverError
+from .superlu import trailing_blocks
 
 BACKENDS = ("scipy", "pardiso")
 REFINE_STEPS = 3  # ScipySchur.extend: refinement steps on the contact rows (1-2 are used)
@@ -236,8 +237,9 @@ class ScipySchur:
     last (after ``order``, a fill-reducing order of all rows; minimum degree if None).
 
     Without pivoting, A = L U and the trailing blocks give S = L_cc U_cc exactly: no solve
-    per contact DOF. The factorization is kept: :meth:`solve` serves the whole matrix and
-    :meth:`extend` costs one solve."""
+    per contact DOF, and the blocks are read inside the factors (:mod:`.superlu`). The
+    factorization is kept: :meth:`solve` serves the whole matrix and :meth:`extend` costs
+    one solve."""
 
     backend = "scipy"
 
@@ -259,10 +261,10 @@ class ScipySchur:
             raise SolverError(f"the sparse factorization failed ({exc}): {_SINGULAR}") from None
         tail = np.arange(n - k, n)
         if np.array_equal(lu.perm_c[tail], tail) and np.array_equal(lu.perm_r[tail], tail):
-            L = lu.L
-            Lcc = L[n - k:, n - k:].toarray()
-            del L
-            S = Lcc @ lu.U[n - k:, n - k:].toarray()
+            blocks = trailing_blocks(lu, k)  # read in place (lu.L, lu.U copy whole factors)
+            if blocks is None:
+                blocks = (lu.L[n - k:, n - k:].toarray(), lu.U[n - k:, n - k:].toarray())
+            S = blocks[0] @ blocks[1]
         else:  # SuperLU reordered the tail after all: S^-1 from k solves
             E = np.zeros((n, k))
             E[tail, np.arange(k)] = 1.0

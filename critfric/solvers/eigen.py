@@ -255,12 +255,13 @@ def schur_spectrum(prob: _Problem, S: np.ndarray, extend, *, count: int,
         beta, vecs = la.eig(T)
     alpha, real, index, n_inf = _classify(beta, real_tol)
 
-    def phi_of(j):
-        phic = np.zeros(2 * p)
-        phic[u] = W @ _real_vector(vecs[:, j])
-        return extend(phic)
+    def phis_of(js):  # every wanted mode by one (multi-column) extension
+        phic = np.zeros((2 * p, len(js)))
+        for col, j in enumerate(js):
+            phic[u, col] = W @ _real_vector(vecs[:, j])
+        return list(extend(phic).T) if js else []
 
-    return _finish(prob, alpha, real, index, phi_of, count, "dense", n_inf, 0)
+    return _finish(prob, alpha, real, index, phis_of, count, "dense", n_inf, 0)
 
 
 def solve_arpack(K, system: ContactSystem, state: ContactState, *, count: int, shift: float,
@@ -321,13 +322,16 @@ def solve_arpack(K, system: ContactSystem, state: ContactState, *, count: int, s
     beta, vecs = _complete_pairs(beta, vecs)
     alpha, real, index, n_inf = _classify(beta, real_tol)
 
-    def phi_of(j):
-        v = _real_vector(vecs[:, j])
-        if method != "arpack-shift":  # v is r, the tangential load on I_c
-            v = red.solve_tangential(v)
-        return red.phi(v)
+    def phis_of(js):
+        out = []
+        for j in js:
+            v = _real_vector(vecs[:, j])
+            if method != "arpack-shift":  # v is r, the tangential load on I_c
+                v = red.solve_tangential(v)
+            out.append(red.phi(v))
+        return out
 
-    spec = _finish(red, alpha, real, index, phi_of, count, method, n_inf, red.applications)
+    spec = _finish(red, alpha, real, index, phis_of, count, method, n_inf, red.applications)
     spec.notes[:0] = notes
     spec.backend = red.factor.backend
     if np.isfinite(radius):
@@ -356,12 +360,15 @@ def _real_vector(v: np.ndarray) -> np.ndarray:
     return (v * (np.abs(v[j]) / v[j])).real
 
 
-def _finish(prob, alpha, real, index, phi_of, count, method, n_inf, applications) -> Spectrum:
+def _finish(prob, alpha, real, index, phis_of, count, method, n_inf, applications) -> Spectrum:
+    """The spectrum with the modes of the lowest ``count`` of each family; ``phis_of`` maps
+    a list of eigenvector indices to their Phi."""
     pos = np.flatnonzero(real & (alpha.real > 0))
     neg = np.flatnonzero(real & (alpha.real < 0))
     modes = []
-    for j in list(pos[:count]) + list(neg[:count]):
-        mode = prob.mode(alpha[j].real, phi_of(index[j]))
+    wanted = list(pos[:count]) + list(neg[:count])
+    for j, phi in zip(wanted, phis_of([index[j] for j in wanted])):
+        mode = prob.mode(alpha[j].real, phi)
         if not mode.residual <= RESIDUAL_TOL:
             raise SolverError(
                 f"the eigenvector of alpha = {alpha[j].real:.10g} has relative residual "
