@@ -103,7 +103,7 @@ SCHEMA: dict[str, dict[str, c.Key]] = {
         "friction": c.Key(c.friction_range, None, "signed friction range [a, b], a <= 0 <= b, "
                           "followed from 0 both ways [default: 1.25 x the larger |static "
                           "coefficient|, else 10]"),
-        "steps": c.Key(c.integer(10, 100000), 200, "friction steps each way that locate the "
+        "steps": c.Key(c.integer(10, 5000), 200, "friction steps each way that locate the "
                        "thresholds (then found exactly)"),
     },
     "output": {

@@ -234,8 +234,12 @@ def sweep(
                                        "h -> 0 limits) [default: the case's size]."),
     element: str | None = typer.Option(None, help="Elements, e.g. P1,P2 [default: the "
                                           "case's element]."),
-    grading: float | None = typer.Option(None, help="Meshes graded towards the ends of "
-                                            "Gamma_C: size g*h there, g in (0, 1]."),
+    grading: float | None = typer.Option(None, help="Meshes graded at every singular "
+                                            "point (contact ends, state junctions, corners "
+                                            "where the condition changes, re-entrant "
+                                            "corners): size g*h there, g in (0, 1]; 1: "
+                                            "uniform [default: 0.1 with three sizes or "
+                                            "more, else the case's]."),
     count: int | None = typer.Option(None, help="Lowest coefficients stored per family."),
     quantity: str = typer.Option("critical", help="What each point computes: critical (the "
                                  "static coefficients of `solve`) or flutter (the flutter "

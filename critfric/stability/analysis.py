@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..case.schema import Case, from_dict, load_case
-from ..errors import SolverError
+from ..errors import CaseError, SolverError
 from ..fem.assembly import assemble_mass, lame
 from ..fem.mesh import Mesh
 from ..solve import Prepared, prepare
@@ -145,6 +145,15 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
     modes = min(st["modes"], pencil.size)
     if modes < st["modes"]:
         notes.append(f"only {pencil.size} degrees of freedom: {modes} modes followed")
+    d = locus.reduced_size(pencil.size, pencil.G.shape[1], modes)
+    if 2 * st["steps"] * float(d) ** 3 > locus.WORK_MAX:
+        minutes = 2 * st["steps"] * float(d) ** 3 * locus.SECONDS_PER_D3 / 60
+        raise CaseError(f"{st['steps']} friction steps on a reduced model of size {d} "
+                        f"({modes} modes) would take about {minutes:.0f} minutes: "
+                        "2 x steps x size^3 must be at most "
+                        f"{locus.WORK_MAX:.0e}; lower [stability] steps (at most "
+                        f"{int(locus.WORK_MAX / (2 * d ** 3))}) or modes",
+                        key="stability.steps").located(case.source)
     order = fill_order(system, pencil.kept) if backend == "scipy" else None
     red = locus.reduce(pencil, modes, backend=backend, order=order)
     if np.any(red.omega2[:modes] <= 0):

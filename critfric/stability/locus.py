@@ -28,6 +28,10 @@ from .pencil import SlidingPencil
 
 FULL_MAX = 80  # kept DOFs up to which the full pencil is followed densely (QZ per step)
 EXTRA_MODES = 10  # reduced basis: 2 * modes + EXTRA_MODES free-vibration modes
+#: largest 2 x steps x d^3 (d: reduced size) of the dense eigenproblems along the grid
+#: (a bound of ~40 minutes; a larger request is refused up front rather than left running)
+WORK_MAX = 5e11
+SECONDS_PER_D3 = 4.5e-9  # one dense eigenproblem of size d, measured on 2 cores (d 300-1200)
 COMPLEX_TOL = 1e-9  # |Im kappa| <= COMPLEX_TOL |kappa|: real
 INFINITE = 1e-12  # |beta| <= INFINITE |alpha| in the QZ output: an infinite kappa
 BISECT = 20  # bisections of a flutter bracket on the reduced model
@@ -66,6 +70,15 @@ class Reduced:
 
 def _factor(pencil: SlidingPencil, backend: str, order):
     return factorize(pencil.Krr.tocsc(), symmetric=True, backend=backend, order=order)
+
+
+def reduced_size(n: int, p: int, modes: int) -> int:
+    """The largest size of the reduced model :func:`reduce` builds ("auto" basis) for a
+    pencil with ``n`` kept DOFs and ``p`` contact nodes."""
+    if n <= FULL_MAX:
+        return n
+    k = min(2 * modes + EXTRA_MODES, n - 2)
+    return min(n, k + (3 * p if 3 * p <= 4 * k else 4 * modes))
 
 
 def reduce(pencil: SlidingPencil, modes: int, *, backend: str = "scipy", order=None,

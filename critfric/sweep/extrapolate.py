@@ -9,7 +9,7 @@ nearer the reference than unweighted, no estimate less safe) (p scanned over
 with exactly three sizes the fit is Richardson's extrapolation). The mesh parameter h is the
 target size of the sweep (``--size``), exact and proportional across unstructured meshes.
 
-Error estimate (what ``critfric validate`` measures, see README "Validation"):
+Error estimate (what ``make validate`` checks, see README "Validation"):
 
     error = max(F |f0 - f_finest|, |f0 - f0'|) + 3 sigma
 

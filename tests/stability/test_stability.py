@@ -185,6 +185,16 @@ def test_bad_friction_range(bad, tmp_path):
     assert not (tmp_path / "x.h5").exists()
 
 
+def test_a_request_of_hours_is_refused_up_front(tmp_path):
+    # 200 modes on ~800 DOFs: a reduced model of ~470, 5000 steps each way ~1e12 flops
+    res = run_cli("stability", "unit-square", "--size", "0.05", "--modes", "200",
+                  "--steps", "5000", "-o", tmp_path / "x.h5")
+    assert res.exit_code == 2 and "stability.steps" in res.output, res.output
+    assert not (tmp_path / "x.h5").exists()
+    res = run_cli("stability", "four-triangles", "--steps", "5001", "-o", tmp_path / "x.h5")
+    assert res.exit_code == 2 and "steps" in res.output, res.output
+
+
 def test_crafted_stability_file_is_refused(tmp_path):
     out = tmp_path / "s.h5"
     assert run_cli("stability", "four-triangles", "-o", out).exit_code == 0
