@@ -44,6 +44,31 @@ def _fmt(values, n: int = 4) -> str:
 
 
 def _table(rows: list[dict]) -> str:
+    static = [r for r in rows if r.get("kind") != "stability"]
+    stability = [r for r in rows if r.get("kind") == "stability"]
+    parts = ([_static_table(static)] if static else []) + (
+        [_stability_table(stability)] if stability else [])
+    return "\n\n".join(parts)
+
+
+def _stability_table(rows: list[dict]) -> str:
+    head = f"{'case':<16} {'element':<7} {'nu':>6} {'h':>9} {'n_dofs':>8} " \
+           f"{'flutter > 0':>13} {'flutter < 0':>13} {'divergence > 0':>14} " \
+           f"{'divergence < 0':>14} {'first':>9} {'seconds':>8}"
+    lines = [head, "-" * len(head)]
+    value = lambda v: "none" if v is None else f"{v:.8g}"
+    for r in rows:
+        first = {r["first"][d] for d in ("positive", "negative")} - {None}
+        lines.append(f"{r['case']:<16} {r['element']:<7} {r['nu']:>6.3f} {r['h']:>9.4g} "
+                     f"{r['n_dofs']:>8d} {value(r['flutter']['positive']):>13} "
+                     f"{value(r['flutter']['negative']):>13} "
+                     f"{value(r['divergence']['positive']):>14} "
+                     f"{value(r['divergence']['negative']):>14} "
+                     f"{'/'.join(sorted(first)) or 'none':>9} {r['seconds']:>8.2f}")
+    return "\n".join(lines)
+
+
+def _static_table(rows: list[dict]) -> str:
     head = f"{'case':<16} {'element':<7} {'nu':>6} {'h':>9} {'n_dofs':>8} {'p':>5} " \
            f"{'critical (lowest > 0)':>22} {'lowest < 0':>14} {'complex':>7} {'seconds':>8}"
     lines = [head, "-" * len(head)]
@@ -206,11 +231,12 @@ def cases() -> None:
 
 @app.command(epilog="\b\nExamples:\n  critfric table *.h5\n  critfric table sq.h5 --json")
 def table(
-    files: list[Path] = typer.Argument(..., help="Solve or sweep files (other files are "
-                                       "skipped, and named)."),
+    files: list[Path] = typer.Argument(..., help="Solve, sweep or stability files (other "
+                                       "files are skipped, and named)."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON list instead."),
 ) -> None:
-    """Print a table of the results in solve files and of the points of sweep files."""
+    """Print a table of the results in solve files, of the points of sweep files and of
+    stability files (a second table)."""
     from ..files.catalog import summaries
 
     with reported():

@@ -1,4 +1,5 @@
-"""What a set of critfric files holds, one summary row per solve or sweep point."""
+"""What a set of critfric files holds, one summary row per solve, sweep point or stability
+analysis."""
 
 from __future__ import annotations
 
@@ -8,13 +9,15 @@ import h5py
 
 from ..errors import CaseError
 from .results import read_summary
+from .stabilityfile import read_stability_summary
 from .sweepfile import read_sweep
 
 
 def summaries(paths) -> tuple[list[dict], list[tuple[Path, str]]]:
     """Rows (as ``critfric solve --json`` prints them, plus ``file``) of every solve file and
-    every point of every sweep file in ``paths``; and (path, why) for each path skipped (not a
-    critfric file, or not a valid one)."""
+    every point of every sweep file in ``paths``, and of every stability file (as
+    ``critfric stability --json``, plus ``file`` and ``kind`` = "stability"); and (path, why)
+    for each path skipped (not a critfric file, or not a valid one)."""
     rows: list[dict] = []
     skipped: list[tuple[Path, str]] = []
     for path in map(Path, paths):
@@ -28,6 +31,9 @@ def summaries(paths) -> tuple[list[dict], list[tuple[Path, str]]]:
         try:
             if kind == "solve":
                 rows.append({**read_summary(path), "file": str(path)})
+            elif kind == "stability":
+                rows.append({**read_stability_summary(path), "file": str(path),
+                             "kind": "stability"})
             elif kind == "sweep":
                 data = read_sweep(path)
                 name = str(data["attrs"].get("case_name", ""))
@@ -35,7 +41,8 @@ def summaries(paths) -> tuple[list[dict], list[tuple[Path, str]]]:
                     rows.append({"case": name, "file": str(path), "complete": True,
                                  "warnings": [], "method": "sweep", **r})
             else:
-                skipped.append((path, "not a critfric solve or sweep file (an export's "
+                skipped.append((path, "not a critfric solve, sweep or stability file (an "
+                                      "export's "
                                       "arrays, or another program's)"))
         except CaseError as exc:
             skipped.append((path, exc.detail))

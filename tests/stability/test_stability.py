@@ -195,6 +195,18 @@ def test_a_request_of_hours_is_refused_up_front(tmp_path):
     assert res.exit_code == 2 and "steps" in res.output, res.output
 
 
+def test_table_lists_stability_files_in_their_own_table(tmp_path):
+    out = tmp_path / "s.h5"
+    assert run_cli("stability", "four-triangles", "-o", out).exit_code == 0
+    res = run_cli("table", out, "--json")
+    assert res.exit_code == 0, res.output
+    (row,) = json.loads(res.stdout)
+    assert row["kind"] == "stability" and row["file"] == str(out)
+    assert row["flutter"]["positive"] == pytest.approx(1.3263339950523856, rel=1e-9)
+    text = run_cli("table", out).stdout
+    assert "flutter > 0" in text and "1.326334" in text and "flutter" in text.split()[-2:]
+
+
 def test_crafted_stability_file_is_refused(tmp_path):
     out = tmp_path / "s.h5"
     assert run_cli("stability", "four-triangles", "-o", out).exit_code == 0
