@@ -181,7 +181,7 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
             warnings.append(f"the {direction} flutter onset moved from {guess.friction:.6g} "
                             f"(reduced model) to {found.friction:.6g} on the full pencil; "
                             "check with more --steps")
-        flutter[direction], flutter_kappa[direction] = found.friction, found.kappa
+        flutter[direction], flutter_kappa[direction] = float(found.friction), float(found.kappa)
         shapes[direction] = pencil.shape_xy(found.right)
         steps[direction] = found.steps
     t4 = time.perf_counter()
