@@ -12,6 +12,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/<stage>/ impor
 from helpers import square_case
 
 
+def pytest_collection_modifyitems(items):
+    """The tests marked slow first (stable order otherwise): under ``pytest -n`` the long
+    ones no longer start last and leave one worker running alone."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
 @pytest.fixture(scope="session")
 def coarse_square():
     """The unit square case at size 0.2 (P1) and its prepared system, shared by the session."""

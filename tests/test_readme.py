@@ -41,6 +41,7 @@ def test_the_readme_has_commands_and_code():
     assert len(_commands()) >= 10 and _blocks("python")
 
 
+@pytest.mark.slow
 def test_every_readme_command_runs_in_order(workdir):
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}"
            f"{os.environ.get('PATH', '')}", "PYTHONPATH": str(REPO)}

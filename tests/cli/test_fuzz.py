@@ -129,6 +129,7 @@ def test_random_text_is_a_case_or_a_case_error(text):
     _only_ours(lambda: loads_case(text, source="fuzz.toml"))
 
 
+@pytest.mark.slow
 @fuzz(1500)
 @given(st.sampled_from(sorted(BASES)), st.lists(mutation, min_size=1, max_size=4))
 def test_mutated_cases_load_or_fail_cleanly(base, edits):
@@ -195,6 +196,7 @@ def command_lines(draw):
     return text, args + ["--max-dofs", "3000"]  # last: bounds the work of every example
 
 
+@pytest.mark.slow
 @fuzz(250)
 @given(command_lines())
 def test_command_line_exits_cleanly(workdir, command):

@@ -218,6 +218,7 @@ def test_crafted_stability_file_is_refused(tmp_path):
         assert res.exit_code == 2, res.output
 
 
+@pytest.mark.slow
 def test_sweep_of_flutter_thresholds(tmp_path):
     from critfric.sweep.runner import make_grid, run_sweep
 
@@ -251,6 +252,7 @@ def test_both_reduced_bases_lead_to_the_same_onset(square, basis):
         assert found.steps <= 5
 
 
+@pytest.mark.slow
 def test_flutter_threshold_converges_with_the_mesh():
     """A 2 x 1 rectangle on its long side, P2 on structured meshes h = 0.2, 0.1, 0.05: the
     threshold converges (differences shrink by more than 3 each halving; measured 0.2418,
