@@ -186,8 +186,8 @@ def test_bad_friction_range(bad, tmp_path):
 
 
 def test_a_request_of_hours_is_refused_up_front(tmp_path):
-    # 200 modes on ~800 DOFs: a reduced model of ~470, 5000 steps each way ~1e12 flops
-    res = run_cli("stability", "unit-square", "--size", "0.05", "--modes", "200",
+    # 200 modes, 101 contact nodes: a reduced model of 513, 5000 steps each way ~3e12 flops
+    res = run_cli("stability", "unit-square", "--size", "0.01", "--modes", "200",
                   "--steps", "5000", "-o", tmp_path / "x.h5")
     assert res.exit_code == 2 and "stability.steps" in res.output, res.output
     assert not (tmp_path / "x.h5").exists()
