@@ -25,6 +25,7 @@ import ctypes
 import functools
 import importlib.metadata
 import importlib.util
+import threading
 import weakref
 
 import numpy as np
@@ -157,27 +158,28 @@ class PardisoFactor:
         self._perm = np.zeros(n, dtype=np.int32)
         weakref.finalize(self, _pardiso_release, fn, self._pt, self.mtype, n)
         if schur_index is None:
-            self._call(12, 1, np.zeros(1), np.zeros(1))
+            self._call(12, 1, np.zeros(n), np.zeros(n))
             return
         index = np.asarray(schur_index)
         self._perm[index] = 1
         self._iparm[35] = 2  # Schur complement, keep the interior factors for phase 333
         ns = len(index)
-        buf = np.zeros(ns * ns)
-        self._call(12, 1, np.zeros(1), buf)
+        buf = np.zeros(max(ns * ns, n))
+        self._call(12, 1, np.zeros(n), buf)
         # PARDISO orders the Schur rows by increasing global index
         pos = np.searchsorted(np.sort(index), index)
-        S = buf.reshape(ns, ns)[np.ix_(pos, pos)]
+        S = buf[:ns * ns].reshape(ns, ns)[np.ix_(pos, pos)]
         self.S = 0.5 * (S + S.T)
         self._index = index
 
     def _call(self, phase: int, nrhs: int, b: np.ndarray, x: np.ndarray) -> None:
         err = ctypes.c_int32(0)
-        self._fn(self._pt.ctypes.data, _int(1), _int(1), _int(self.mtype), _int(phase),
-                 _int(self.shape[0]), self._a.ctypes.data, self._ia.ctypes.data_as(_I32),
-                 self._ja.ctypes.data_as(_I32), self._perm.ctypes.data_as(_I32), _int(nrhs),
-                 self._iparm.ctypes.data_as(_I32), _int(0), b.ctypes.data, x.ctypes.data,
-                 ctypes.byref(err))
+        with _MKL_LOCK:
+            self._fn(self._pt.ctypes.data, _int(1), _int(1), _int(self.mtype), _int(phase),
+                     _int(self.shape[0]), self._a.ctypes.data, self._ia.ctypes.data_as(_I32),
+                     self._ja.ctypes.data_as(_I32), self._perm.ctypes.data_as(_I32),
+                     _int(nrhs), self._iparm.ctypes.data_as(_I32), _int(0), b.ctypes.data,
+                     x.ctypes.data, ctypes.byref(err))
         if err.value != 0:
             what = _PARDISO_ERRORS.get(err.value, "see the MKL PARDISO error codes")
             raise SolverError(f"PARDISO phase {phase} failed with error {err.value} ({what}); "
@@ -211,13 +213,22 @@ def _int(value: int):
     return ctypes.byref(ctypes.c_int32(value))
 
 
+#: every MKL PARDISO call, the finalizers' releases included, one at a time: a factor freed
+#: by the cyclic garbage collector is released in whatever thread the collection ran (pytest
+#: workers' I/O threads, a user's threads), possibly during another factor's call; a full
+#: suite under pytest -n 2 aborted twice in phase 12 with a corrupted heap
+_MKL_LOCK = threading.RLock()
+
+
 def _pardiso_release(fn, pt, mtype, n) -> None:
-    zero = np.zeros(1)
+    """Phase -1 on ``pt``, with arrays of the sizes PARDISO's interface declares."""
+    zero, index = np.zeros(n), np.zeros(n + 1, dtype=np.int32)
     iparm = np.zeros(64, dtype=np.int32)
-    fn(pt.ctypes.data, _int(1), _int(1), _int(mtype), _int(-1), _int(n), zero.ctypes.data,
-       iparm.ctypes.data_as(_I32), iparm.ctypes.data_as(_I32), iparm.ctypes.data_as(_I32),
-       _int(1), iparm.ctypes.data_as(_I32), _int(0), zero.ctypes.data, zero.ctypes.data,
-       ctypes.byref(ctypes.c_int32(0)))
+    with _MKL_LOCK:
+        fn(pt.ctypes.data, _int(1), _int(1), _int(mtype), _int(-1), _int(n), zero.ctypes.data,
+           index.ctypes.data_as(_I32), index.ctypes.data_as(_I32), index.ctypes.data_as(_I32),
+           _int(1), iparm.ctypes.data_as(_I32), _int(0), zero.ctypes.data, zero.ctypes.data,
+           ctypes.byref(ctypes.c_int32(0)))
 
 
 # ------------------------------------------------------------------------------- interface

@@ -227,3 +227,47 @@ def test_scipy_install_finds_the_inclined_body_negative_family():
     a = critfric.solve_case(case, overrides={"solve.backend": "scipy", "solve.method": "arpack"})
     np.testing.assert_allclose([a.positive[0], a.negative[0]], [r.positive[0], r.negative[0]],
                                rtol=1e-9)
+
+
+@pytest.mark.skipif("pardiso" not in linsolve.available_backends(),
+                    reason="backend 'pardiso' not installed (pip install critfric[fast])")
+def test_pardiso_factors_freed_by_the_collector_in_another_thread():
+    """ctypes lets other threads run during a PARDISO call; a factor in a reference cycle is
+    released (phase -1) by whichever thread collects it. Factors of many sizes made and left
+    to the collector while another thread keeps collecting: every solve stays exact."""
+    import gc
+    import threading
+
+    stop = threading.Event()
+
+    def collect():
+        while not stop.is_set():
+            junk = [[i] for i in range(100)]
+            for item in junk:
+                item.append(junk)  # cycles: the collector runs in this thread too
+            gc.collect(0)
+            stop.wait(0.001)
+
+    thread = threading.Thread(target=collect, daemon=True)
+    thread.start()
+    rng = np.random.default_rng(7)
+    try:
+        for _ in range(30):
+            n = int(rng.integers(6, 3000))
+            e = np.ones(n)
+            A = sp.diags([-e[:-1], 2.5 * e, -e[:-1]], [-1, 0, 1], format="csc")
+            index = np.sort(rng.choice(n, size=min(n - 2, 40), replace=False))
+            sc = linsolve.schur(A, index, backend="pardiso")
+            sc.cycle = sc
+            x = sc.extend(np.ones(len(index)))
+            assert np.allclose(x[index], 1.0)
+            free = np.setdiff1d(np.arange(n), index)
+            assert np.abs((A @ x)[free]).max() < 1e-10
+            F = linsolve.factorize(A, symmetric=True, backend="pardiso")
+            F.cycle = F
+            b = rng.standard_normal(n)
+            assert np.abs(A @ F.solve(b) - b).max() < 1e-10
+            del sc, F
+    finally:
+        stop.set()
+        thread.join()
