@@ -20,6 +20,10 @@ def main() -> None:
         app()
     except KeyboardInterrupt:  # outside a command (start-up, option parsing)
         _interrupted("critfric: interrupted")
+    except Exception as exc:
+        if _from_interrupt(exc):  # e.g. Python 3.11 wraps one raised in a class's
+            _interrupted("critfric: interrupted")  # __set_name__ (import platform) in a RuntimeError
+        raise
     except SystemExit as exc:
         from .failures import said_interrupted
 
@@ -28,6 +32,17 @@ def main() -> None:
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # the work is done: exit quietly
         raise
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _from_interrupt(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is in the cause or context chain of ``exc``."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _interrupted(line: str | None) -> None:

@@ -4,6 +4,7 @@ file created or changed, and no hang. The catalogue of merely wrong inputs is te
 
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -405,6 +406,34 @@ def test_an_address_space_cap_is_exit_2_with_the_estimate(tmp_path):
     assert proc.returncode == 2, proc.stderr
     assert "is available" in proc.stderr and "finest mesh size" in proc.stderr
     assert "Traceback" not in proc.stderr and not (tmp_path / "r.h5").exists()
+
+
+def test_an_interrupt_python_wraps_at_start_up_is_still_130(monkeypatch):
+    """Python 3.11 turns a KeyboardInterrupt raised in a class's __set_name__ (as `import
+    typer` -> `import platform` does) into a RuntimeError: still one line and exit 130."""
+    import types
+
+    import critfric.cli as cli
+
+    def wrapped(name):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise RuntimeError("Error calling __set_name__ on 'cached_property'") from exc
+
+    fake = types.ModuleType("critfric.cli.app")
+    fake.__getattr__ = wrapped
+    monkeypatch.setitem(sys.modules, "critfric.cli.app", fake)
+    said = []
+
+    def interrupted(line):
+        said.append(line)
+        raise SystemExit(130)
+
+    monkeypatch.setattr(cli, "_interrupted", interrupted)
+    with pytest.raises(SystemExit) as exit_:
+        cli.main()
+    assert exit_.value.code == 130 and said == ["critfric: interrupted"]
 
 
 @pytest.mark.parametrize("delay", [0.05, 0.15, 0.25, 0.3, 0.35, 0.45, 0.6])
