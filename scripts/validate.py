@@ -8,10 +8,14 @@ called converged misses its reference by more than its error estimate, or a clos
 
 References (nu = 0.3):
 - four triangles, one triangle: the closed forms of the paper (no h: solved as given);
-- unit square: 1.9447114, the Q2 family graded 0.1 at h = 0.05, 0.025, 0.0125 (1.944713631,
-  1.944711991, 1.944711573; steps shrink 3.9x: limit 1.9447114 +- 2e-7);
-- inclined body: 0.5850169, the Q2 family graded 0.1 at h = 0.025, 0.0125, 0.00625
-  (1.1 M DOFs: 0.585019771, 0.585018086, 0.585017407; limit 0.5850169 +- 2e-7).
+- unit square: 1.94471145, inclined body: 0.58501693 (+- 3e-8 both): P2 and Q2 on meshes
+  graded radially at every singular point (local size h (d / R)^(3/4) at distance d < R from
+  it, down to 1e-5 of the body's extent; not critfric's grading, see README "Validation"),
+  converging at order ~4: unit square P2 1.9447114132, 1.9447114455, 1.9447114474 at
+  h = 0.025, 0.0125, 0.00625 and Q2 1.9447114394, 1.9447114425 at 0.025, 0.0125; inclined
+  body P2 0.5850169383, 0.5850169295 and Q2 0.5850169356, 0.5850169292 at 0.025, 0.0125
+  (the P2 value at 0.00625, 1.3 M DOFs, is 0.5850169365). They agree with the earlier
+  references from critfric's own graded Q2 families (1.9447114 and 0.5850169 +- 2e-7).
 - mixed states (a 2 x 1 block stuck on [0, 0.5], slip + on [0.5, 1.3], slip - on [1.3, 2] of
   its base): no reference; its families must agree between elements.
 
@@ -40,9 +44,9 @@ MIXED = {"geometry": {"shape": "rectangle", "width": 2.0, "height": 1.0},
                                {"from": 0.5, "to": 1.3, "status": "slip", "gamma": 1},
                                {"from": 1.3, "to": 2.0, "status": "slip", "gamma": -1}]}}
 #: (case, family) -> reference |eigenvalue| at nu = 0.3 (see the module docstring)
-REFERENCE = {("unit-square", "positive"): 1.9447114, ("unit-square", "negative"): 1.9447114,
-             ("inclined-body", "positive"): 0.5850169}
-REFERENCE_ERROR = {"unit-square": 2e-7, "inclined-body": 2e-7}
+REFERENCE = {("unit-square", "positive"): 1.94471145, ("unit-square", "negative"): 1.94471145,
+             ("inclined-body", "positive"): 0.58501693}
+REFERENCE_ERROR = {"unit-square": 3e-8, "inclined-body": 3e-8}
 
 
 def closed_forms() -> list[tuple[str, float, float]]:
@@ -96,7 +100,7 @@ def table(rows: list[dict], exact: list, markdown: bool) -> tuple[str, int]:
             verdict = "flagged: " + r["status"].removeprefix("not converged: ").split(" (")[0]
         lines.append([r["case"], r["element"], r["family"], _num(r["limit"], "%.9f"),
                       _num(r["error"], "%.1e"), _num(r["order"], "%.2f"),
-                      _num(r["reference"], "%.7f"), _num(gap, "%.1e"), verdict])
+                      _num(r["reference"], "%.8f"), _num(gap, "%.1e"), verdict])
     for name, value, ref in exact:
         held = abs(value - ref) <= 1e-12 * ref
         misses += not held

@@ -241,9 +241,12 @@ def table(
 
     with reported():
         rows, skipped = summaries(files)
-        if not rows:  # nothing to show: one error naming each file and why
+        if not rows and skipped:  # nothing to show: one error naming each file and why
             (path, why), *more = skipped
             raise CaseError(why + "".join(f"; {p}: {w}" for p, w in more), file=str(path))
+        if not rows:  # readable files, but no point computed yet (a sweep that never ran)
+            say("critfric: note: no results yet in " + ", ".join(map(str, files))
+                + " (a sweep resumes with the same command)")
         for path, why in skipped:
             say(f"critfric: note: skipped {path}: {why}")
         typer.echo(json.dumps(rows) if as_json else _table(rows))

@@ -155,15 +155,31 @@ def test_collinear_vertices_keep_separate_groups():
 
 @pytest.mark.parametrize("element", ["P1", "Q2"])
 def test_refined_path_matches_direct_meshing(monkeypatch, element):
+    monkeypatch.setattr(mesh_module, "NEST_FRACTION", 1e-9)  # gmsh at h
+    assert mesh_module._refinements(SPLIT, 0.025) == 0
     direct = build_mesh(SPLIT, size=0.025, element=element)
-    monkeypatch.setattr(mesh_module, "REFINE_ABOVE", 1000)  # mesh at 2h, then split once
-    assert mesh_module._refinements(SPLIT, 0.025, element) == 1
+    monkeypatch.setattr(mesh_module, "NEST_FRACTION", 0.04 / 1.2)  # gmsh at 2h, split once
+    assert mesh_module._refinements(SPLIT, 0.025) == 1
     refined = build_mesh(SPLIT, size=0.025, element=element)
     assert refined.n_nodes == pytest.approx(direct.n_nodes, rel=0.15)
     for m in (direct, refined):
         check_cells(m)
         check_midpoints(m)
         check_edges(m, SPLIT)
+
+
+def test_meshes_of_halved_sizes_are_nested():
+    from scipy.spatial import cKDTree
+
+    """h, h/2 and h/4 below the canonical coarse size: one gmsh mesh, split 1, 2 and 3 times
+    (every node of the coarser mesh is a node of the finer one, cells 4x)."""
+    extent = float(np.ptp(SPLIT.vertices, axis=0).max())
+    h = mesh_module.NEST_FRACTION * extent / 2
+    meshes = [build_mesh(SPLIT, size=h / 2**k, element="P1") for k in range(3)]
+    for coarse, fine in zip(meshes, meshes[1:]):
+        assert fine.n_cells == 4 * coarse.n_cells
+        near, _ = cKDTree(fine.points).query(coarse.points)
+        assert near.max() < 1e-12 * extent
 
 
 @pytest.mark.parametrize("element", ["P1", "Q1"])

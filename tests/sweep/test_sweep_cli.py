@@ -38,7 +38,7 @@ def test_sweep_as_written_sweeps_the_unit_square(tmp_path, monkeypatch):
         assert f["points/size"][0] == 0.025 and "limits" in f
         status = [s.decode() for s in f["points/status"][()]]
     assert status.count("ok") >= 10  # nu = 0 has no real eigenvalue on this mesh
-    assert "0.3" in res.stdout and "1.9463557" in res.stdout
+    assert "0.3" in res.stdout and "1.9469250" in res.stdout
     assert "need at least three sizes" in res.stdout
     again = run_cli("sweep", "--nu", "0:0.5")  # the same command resumes the same file
     assert again.exit_code == 0 and list(tmp_path.glob("unit_square_sweep_*.h5")) == [out]
@@ -189,3 +189,17 @@ def test_the_point_table_ends_in_grid_order(tmp_path):
         alpha = f["points/positive"][:, 0]
     np.testing.assert_allclose(alpha, [four_triangles_alpha(v) for v in
                                        (0.05, 0.1, 0.2, 0.25, 0.3, 0.4)], rtol=1e-10)
+
+
+def test_table_of_a_sweep_that_never_ran_says_so(tmp_path):
+    """A sweep file whose workers failed to start has no point: `table` says so, exit 0."""
+    from critfric.files.sweepfile import open_sweep
+    from critfric.sweep import make_grid
+
+    case = critfric.load_case("unit-square")
+    path = tmp_path / "empty.h5"
+    open_sweep(path, case=case, grid=make_grid(case, nu="0.3"))
+    res = run_cli("table", str(path))
+    assert res.exit_code == 0 and "no results yet" in res.stderr and "Traceback" not in res.output
+    res = run_cli("table", str(path), "--json")
+    assert res.exit_code == 0 and json.loads(res.stdout) == []
