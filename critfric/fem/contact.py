@@ -58,7 +58,16 @@ class ContactSystem:
         return len(self.nodes)
 
     def stiffness(self, lam: float, G: float) -> sp.csr_matrix:
-        return (lam * self.K_lam + G * self.K_G).tocsr()
+        """lam K_lam + G K_G; parts of one sparsity (as assembled) combine entry by entry."""
+        A, B = self.K_lam, self.K_G
+        if (A.shape == B.shape and A.nnz == B.nnz and A.has_sorted_indices
+                and B.has_sorted_indices and np.array_equal(A.indptr, B.indptr)
+                and np.array_equal(A.indices, B.indices)):
+            K = sp.csr_matrix((lam * A.data + G * B.data, A.indices.copy(), A.indptr.copy()),
+                              shape=A.shape)
+            K.has_sorted_indices = True
+            return K
+        return (lam * A + G * B).tocsr()
 
     def restrict(self, A: sp.spmatrix) -> sp.csr_matrix:
         """A matrix over all 2 * n_nodes xy DOFs (a mass matrix, say) -> its free-DOF block in

@@ -427,3 +427,24 @@ def test_von_mises():
     np.testing.assert_allclose(von_mises([[p, 0, 0, 0]] * 2), [p, p], rtol=1e-15)
     # plane strain: szz enters; uniaxial strain exx with lam = G = 1 gives (3, 1, 0, 1) * exx
     np.testing.assert_allclose(von_mises([3.0, 1.0, 0.0, 1.0]), 2.0, rtol=1e-15)
+
+
+@pytest.mark.parametrize("element", ["P1", "Q2"])
+def test_contact_system_stiffness_is_the_sum_of_its_parts(element):
+    """lam K_lam + G K_G entry by entry on the shared sparsity = the sparse sum; a part with
+    another sparsity still combines by the sparse sum."""
+    import critfric
+    from critfric.fem.contact import ContactSystem
+
+    prep = critfric.prepare(critfric.load_case("unit-square", overrides={
+        "mesh.size": 0.2, "mesh.element": element}))
+    s = prep.system
+    K = s.stiffness(2.5, 0.75)
+    ref = (2.5 * s.K_lam + 0.75 * s.K_G).tocsr()
+    assert K.has_sorted_indices and abs(K - ref).max() <= 1e-15 * abs(ref).max()
+    other = s.K_G.copy()
+    other.data[0] = 0.0
+    other.eliminate_zeros()  # one entry fewer: another sparsity
+    mixed = ContactSystem(**{**s.__dict__, "K_G": other})
+    np.testing.assert_allclose(mixed.stiffness(2.5, 0.75).toarray(),
+                               (2.5 * s.K_lam + 0.75 * other).toarray())

@@ -271,3 +271,20 @@ def test_pardiso_factors_freed_by_the_collector_in_another_thread():
     finally:
         stop.set()
         thread.join()
+
+
+@pytest.mark.parametrize("density", [0.0, 0.003, 0.05])
+def test_upper_triangle_is_triu(density):
+    from critfric.solvers.backends import upper_triangle
+
+    A = sp.random(300, 300, density=density, format="csr", random_state=3)
+    A = (A + A.T + sp.eye(300)).tocsr()
+    # the rows of A in reverse, each with its entries in reverse: unsorted CSR
+    A.indices, A.data = A.indices[::-1].copy(), A.data[::-1].copy()
+    A.indptr = A.indptr[-1] - A.indptr[::-1]
+    A.has_sorted_indices = False
+    U, T = upper_triangle(A), sp.triu(A, format="csr")
+    T.sort_indices()
+    np.testing.assert_array_equal(U.indptr, T.indptr)
+    np.testing.assert_array_equal(U.indices, T.indices)
+    np.testing.assert_array_equal(U.data, T.data)
