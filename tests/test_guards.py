@@ -82,7 +82,7 @@ def test_prepare_refuses_before_meshing():
     start = time.perf_counter()
     with pytest.raises(CaseError, match=r"sq\.toml.*mesh\.size.*2\.31e\+08 DOFs.*--max-dofs"):
         prepare(case, max_dofs=10**6)
-    assert time.perf_counter() - start < 2  # 10^8 cells were never meshed
+    assert time.perf_counter() - start < 30  # 10^8 cells were never meshed (minutes)
     assert prepare(case.with_overrides({"mesh.size": 0.5}), max_dofs=100).system.n_dofs < 100
 
 

@@ -112,8 +112,9 @@ def solve(
             check_output(path, force=force)  # again: another run may have written it
             result = solve_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo)
             interrupted.check()  # a Ctrl-C that Python swallowed: still nothing written
-            write_result(result, path, force=force)
-        ending.kept = f"the result is written to {path}"
+            with interrupted.deferred():  # a Ctrl-C during the write comes after it
+                write_result(result, path, force=force)
+                ending.kept = f"the result is written to {path}"
         if plot:
             from ..plots.figures import plot_file
 
@@ -191,8 +192,9 @@ def stability(
             check_output(path, force=force)
             result = stability_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo)
             interrupted.check()
-            write_stability(result, path, force=force)
-        ending.kept = f"the result is written to {path}"
+            with interrupted.deferred():  # a Ctrl-C during the write comes after it
+                write_stability(result, path, force=force)
+                ending.kept = f"the result is written to {path}"
         if plot:
             from ..plots.figures import plot_file
 

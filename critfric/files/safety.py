@@ -7,6 +7,7 @@ import shutil
 import signal
 import sys
 import tempfile
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -23,6 +24,7 @@ class interrupt_guard:
 
     def __enter__(self) -> interrupt_guard:
         self.hit = False
+        self._defer = False
         self._saved = None
         try:
             if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
@@ -35,7 +37,19 @@ class interrupt_guard:
 
     def _handler(self, signum, frame):
         self.hit = True
-        raise KeyboardInterrupt
+        if not self._defer:
+            raise KeyboardInterrupt
+
+    @contextmanager
+    def deferred(self) -> Iterator[None]:
+        """Hold a Ctrl-C back until the block is done, then raise it: for a write and the
+        record that it happened, so that what an interruption says matches what is on disk."""
+        self._defer = True
+        try:
+            yield
+        finally:
+            self._defer = False
+        self.check()
 
     def _unraisable(self, info) -> None:
         if not (self.hit and issubclass(info.exc_type, KeyboardInterrupt)):

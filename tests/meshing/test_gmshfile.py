@@ -141,7 +141,7 @@ def test_geo_too_fine_is_refused_before_meshing(tmp_path):
     start = time.perf_counter()
     with pytest.raises(CaseError, match="finest mesh size that fits is about"):
         solve_case(file_case(geo), max_dofs=10_000)
-    assert time.perf_counter() - start < 5  # refused, not meshed (10^10 cells)
+    assert time.perf_counter() - start < 60  # refused, not meshed (10^10 cells: never ends)
 
 
 # ------------------------------------------------------------------------ .msh meshes
