@@ -53,7 +53,7 @@ from threadpoolctl import threadpool_limits
 from ..errors import SolverError
 from ..fem.contact import FREE, SLIP, STUCK, ContactSystem
 from .backends import factorize, resolve_backend, schur
-from .ordering import fill_order
+from .ordering import fill_order, halves
 
 INFINITE_TOL = 1e-6
 RESIDUAL_TOL = 1e-6
@@ -229,7 +229,8 @@ def solve_dense(K, system: ContactSystem, state: ContactState, *, count: int,
         raise SolverError(f"the dense path would form a {2 * p} x {2 * p} Schur complement "
                           f"({p} contact nodes > {SCHUR_MAX_CONTACT}); use method = 'arpack'")
     sc = schur(K, np.concatenate([system.cn, system.ct]), backend=backend,
-               order=_fill_order(system, np.arange(K.shape[0]), backend))
+               order=_fill_order(system, np.arange(K.shape[0]), backend),
+               halves=lambda: halves(system))
     spec = schur_spectrum(prob, sc.S, sc.extend, count=count, real_tol=real_tol)
     spec.backend = sc.backend
     return spec

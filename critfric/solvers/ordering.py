@@ -38,9 +38,9 @@ def nested_dissection(points: np.ndarray, cells: np.ndarray, *, leaf: int = LEAF
     return _dissect(points, cells, leaf)[0]
 
 
-def _dissect(points: np.ndarray, cells: np.ndarray, leaf: int = LEAF):
+def _dissect(points: np.ndarray, cells: np.ndarray, leaf: int = LEAF, levels: int = MAX_LEVELS):
     """(rank, half): the elimination rank of every node and its side of the first split (0:
-    lower, 1: upper, 2: the top separator, which no cell crosses)."""
+    lower, 1: upper, 2: the top separator, which no cell crosses); ``levels`` of splits."""
     points = np.asarray(points, dtype=float)
     n = len(points)
     u, v = node_edges(cells, n)
@@ -64,7 +64,7 @@ def _dissect(points: np.ndarray, cells: np.ndarray, leaf: int = LEAF):
         upper = np.zeros(n, dtype=bool)
         upper[order] = rank >= size[group] // 2
         leafy = np.zeros(n, dtype=bool)
-        leafy[order] = (size[group] <= leaf) | (level >= MAX_LEVELS)
+        leafy[order] = (size[group] <= leaf) | (level >= levels)
         # (u, v) now join active nodes of one part; the separator: lower-half nodes sharing
         # a cell with the upper half
         up_u, up_v = upper[u], upper[v]
@@ -164,12 +164,15 @@ def _dissected(system, dofs: np.ndarray) -> bool:
     return len(dofs) >= ND_MIN_DOFS and system.mesh.element in ("P1", "Q1")
 
 
-def halves(system, dofs: np.ndarray | None = None) -> np.ndarray | None:
+def halves(system, dofs: np.ndarray | None = None) -> np.ndarray:
     """The side of the first nested-dissection split of each free DOF ``dofs`` (default: all):
     0 and 1 for the two halves, 2 for the separator between them (no entry of K joins the
-    halves); None where :func:`fill_order` does not dissect the mesh (its order's leading
-    DOFs are then no half of the body)."""
+    halves). Where :func:`fill_order` dissects the mesh these are its order's halves; else
+    the same first split alone."""
     dofs = np.arange(len(system.free)) if dofs is None else np.asarray(dofs)
-    if not _dissected(system, dofs):
-        return None
-    return _mesh_dissection(system.mesh)[1][system.free[dofs] // 2]
+    mesh = system.mesh
+    if _dissected(system, dofs):
+        half = _mesh_dissection(mesh)[1]
+    else:
+        half = _dissect(mesh.points, mesh.cells, levels=1)[1]
+    return half[system.free[dofs] // 2]

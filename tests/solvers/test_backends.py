@@ -288,3 +288,39 @@ def test_upper_triangle_is_triu(density):
     np.testing.assert_array_equal(U.indptr, T.indptr)
     np.testing.assert_array_equal(U.indices, T.indices)
     np.testing.assert_array_equal(U.data, T.data)
+
+
+@pytest.mark.parametrize("element", ["P1", "Q1", "P2"])
+def test_substructured_schur_equals_one_factorization(element, monkeypatch):
+    """SplitSchur (each half factored alone, the separator eliminated densely) gives the Schur
+    complement and the extensions of one factorization of the whole, and is what the SciPy
+    dense path takes from SPLIT_MIN_ROWS rows on, with the same spectrum and modes."""
+    system = prepare(loads_case(square_case(element=element, size=0.05))).system
+    K = system.stiffness(*lame(1.0, 0.3))
+    index = np.concatenate([system.cn, system.ct])
+    monkeypatch.setattr(ordering, "ND_MIN_DOFS", 0)  # P1/Q1 dissected, P2 minimum degree
+    halves, order = ordering.halves(system), ordering.fill_order(system)
+    assert set(np.unique(halves)) == {0, 1, 2} and np.count_nonzero(halves == 2) < 0.1 * len(halves)
+    whole = linsolve.ScipySchur(K, index, order=order)
+    split = linsolve.SplitSchur(K, index, halves, order=order)
+    np.testing.assert_allclose(split.S, whole.S, rtol=0, atol=1e-11 * np.abs(whole.S).max())
+    xc = np.random.default_rng(3).standard_normal((len(index), 3))
+    x = split.extend(xc)
+    np.testing.assert_array_equal(x[index], xc)
+    np.testing.assert_allclose(x, whole.extend(xc), rtol=0, atol=1e-10 * np.abs(x).max())
+    interior = np.ones(K.shape[0], dtype=bool)
+    interior[index] = False
+    assert np.abs((K @ x)[interior]).max() < 1e-10 * abs(K).max() * np.abs(x).max()
+    state = mixed_state(system.n_contact)
+    ref = eigen.solve(K, system, state, method="dense", count=2, backend="scipy")
+    monkeypatch.setattr(linsolve, "SPLIT_MIN_ROWS", 0)
+    assert isinstance(linsolve.schur(K, index, order=order, halves=halves), linsolve.SplitSchur)
+    # halves that K joins, or an empty half, are no bisection: one factorization instead
+    for no_split in (np.arange(len(halves)) % 2, np.zeros_like(halves)):
+        assert isinstance(linsolve.schur(K, index, order=order, halves=no_split),
+                          linsolve.ScipySchur)
+    got = eigen.solve(K, system, state, method="dense", count=2, backend="scipy")
+    np.testing.assert_allclose(got.positive[:2], ref.positive[:2], rtol=1e-10)
+    np.testing.assert_allclose(got.negative[:2], ref.negative[:2], rtol=1e-10)
+    for a, b in zip(got.modes, ref.modes):
+        np.testing.assert_allclose(a.phi, b.phi, atol=1e-9)
