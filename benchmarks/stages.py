@@ -37,7 +37,7 @@ def solve(root: Path, size: float, backend: str) -> dict:
         out = Path(tmp) / "r.h5"
         cmd = [sys.executable, "-m", "critfric", "solve", "unit-square", "--size", str(size),
                "--json", "--backend", backend, "-o", str(out), "--force"]
-        wall, peak, stdout = _run_measured(cmd, env)
+        wall, peak, stdout = _run_measured(cmd, env, cwd=root)
         with h5py.File(out) as f:
             stages = {s: float(f.attrs[f"seconds_{s}"]) for s in STAGES}
     summary = json.loads(stdout)
@@ -52,11 +52,14 @@ def factor(root: Path, size: float, backend: str) -> dict:
     return dict(json.loads(stdout.strip().splitlines()[-1]), peak=peak)
 
 
-def _run_measured(cmd: list[str], env: dict) -> tuple[float, float, str]:
-    """Wall seconds, peak RSS in MB (from wait4) and stdout of a fresh process."""
+def _run_measured(cmd: list[str], env: dict, cwd: Path | None = None
+                  ) -> tuple[float, float, str]:
+    """Wall seconds, peak RSS in MB (from wait4) and stdout of a fresh process. ``python -m``
+    puts its working directory first on sys.path (before PYTHONPATH): run it in the checkout
+    measured, or another checkout's critfric is measured instead."""
     t = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
-                            text=True)
+                            text=True, cwd=cwd)
     out, err = proc.stdout.read(), proc.stderr.read()
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t

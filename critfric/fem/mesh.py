@@ -43,10 +43,13 @@ class Mesh:
     def diameter(self) -> float:
         """h: the largest cell diameter (longest distance between two vertices of a cell)."""
         nv = get_element(self.element).n_vertices
-        a, b = np.triu_indices(nv, k=1)  # each vertex pair once: sqrt of the largest square
-        v = self.points[self.cells[:, :nv]]
-        d = v[:, a] - v[:, b]
-        return float(np.sqrt((d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]).max()))
+        x, y = (np.ascontiguousarray(self.points[:, k]) for k in range(2))
+        largest = 0.0  # each vertex pair once, one coordinate at a time (no (n, nv, 2) copy)
+        for a, b in zip(*np.triu_indices(nv, k=1)):
+            i, j = self.cells[:, a], self.cells[:, b]
+            dx, dy = x[i] - x[j], y[i] - y[j]
+            largest = max(largest, float((dx * dx + dy * dy).max()))
+        return float(np.sqrt(largest))
 
     def edge_nodes(self, names) -> np.ndarray:
         """Sorted unique node indices on the boundary groups ``names``."""
