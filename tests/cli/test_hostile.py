@@ -441,11 +441,17 @@ def test_an_interrupt_python_wraps_at_start_up_is_still_130(monkeypatch):
 def test_ctrl_c_at_any_moment_of_start_up_is_130_without_traceback(tmp_path, delay):
     from helpers import cli_process
 
-    proc = cli_process("solve", "one-triangle", "-o", tmp_path / "r.h5",
-                       stdout=__import__("subprocess").DEVNULL)
-    time.sleep(delay)
-    proc.send_signal(__import__("signal").SIGINT)
-    err = proc.communicate(timeout=60)[1]
+    for _ in range(5):
+        proc = cli_process("solve", "one-triangle", "-o", tmp_path / "r.h5",
+                           stdout=__import__("subprocess").DEVNULL)
+        time.sleep(delay)
+        proc.send_signal(__import__("signal").SIGINT)
+        err = proc.communicate(timeout=60)[1]
+        # on a loaded machine the interrupt can come before the interpreter runs any of
+        # critfric (Python's own start-up, e.g. "Could not import runpy module", with no
+        # critfric frame in the traceback): again
+        if proc.returncode in (0, 130) or "critfric" in err:
+            break
     assert proc.returncode in (0, 130) and "Traceback" not in err, err
     if proc.returncode == 130:
         assert err.count("critfric: interrupted") == 1 and err.count("\n") == 1, err
