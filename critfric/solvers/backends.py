@@ -357,12 +357,15 @@ class SplitSchur:
         halves = np.asarray(halves)
         in_index = np.zeros(n, dtype=bool)
         in_index[index] = True
+        label = np.where(in_index, 2, halves)  # the rows of ``index`` join the interface
         order = np.arange(n) if order is None else np.asarray(order)
-        side = halves[order]
-        self._rows = [order[(side == h) & ~in_index[order]] for h in (0, 1)]
+        side = label[order]
+        self._rows = [order[side == h] for h in (0, 1)]
         sep = order[(side == 2) & ~in_index[order]]
-        if not (len(self._rows[0]) and len(self._rows[1]) and len(sep)) or (
-                A[self._rows[0]][:, self._rows[1]].nnz):
+        # an entry of A in a row of one half and a column of the other: no bisection
+        row_label = np.repeat(label, np.diff(A.indptr))
+        if not (len(self._rows[0]) and len(self._rows[1]) and len(sep)) or np.any(
+                row_label + label[A.indices] == 1):
             raise _NoSplit
         interface = np.concatenate([index, sep]).astype(np.int64)
         self._touch = [np.flatnonzero(halves[interface] != 1 - h) for h in (0, 1)]
