@@ -112,8 +112,8 @@ class Pardiso:
     def __init__(self, K):
         import scipy.sparse as sp
         sys.path.insert(0, str(ROOT))
-        from critfric.solvers.backends import _pardiso_library
-        self.fn, init = _pardiso_library()
+        from critfric.solvers.pardiso import pardiso_library
+        self.fn, init = pardiso_library()
         A = sp.triu(K, format="csr")
         A.sort_indices()
         self.n = n = A.shape[0]

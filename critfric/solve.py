@@ -19,7 +19,8 @@ import numpy as np
 from .case.schema import Case, from_dict, load_case
 from .errors import CaseError
 from .fem.assembly import assemble_elasticity, lame
-from .fem.contact import ContactSystem, check_held, contact_system
+from .fem.contact import (ContactSystem, check_held, contact_layout, contact_system,
+                          free_upper_pattern)
 from .fem.elements import get_element
 from .fem.mesh import Mesh
 from .guards import check_dofs, polygon_footprint
@@ -39,6 +40,7 @@ class Prepared:
     system: ContactSystem
     seconds: dict[str, float]
     made_from: dict = field(default_factory=dict)  # the case sections that made the mesh
+    plan: Any = field(default=None, repr=False)  # eigen.plan_dense of the stiffness, used once
 
     def __repr__(self) -> str:
         return (f"Prepared({self.mesh!r}, {self.system.n_dofs} DOFs, "
@@ -212,11 +214,15 @@ def make_mesh(case: Case, *, max_dofs: int | None = None, trust_geo: bool = Fals
                       junctions=_junctions(case, poly) if graded else ())
 
 
-def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False) -> Prepared:
+def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
+            _plan: bool = False) -> Prepared:
     """Mesh, assemble and classify the boundary of a case (independent of nu).
 
     max_dofs : refuse a mesh estimated above this many DOFs (default: what memory allows).
     trust_geo: mesh a .geo script even if it can run programs or read or write files.
+    _plan    : start the eigen stage's factorization analysis from the stiffness pattern as
+               soon as it is known (:func:`critfric.solvers.eigen.plan_dense`), for the one
+               solve of ``case`` that follows.
     """
     t0 = time.perf_counter()
     try:
@@ -224,19 +230,32 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False)
     except CaseError as exc:
         raise exc.located(case.source) from None
     dirichlet = [name for name in case.boundary["dirichlet"] if name in mesh.edges]
-    if dirichlet:  # unknown names are reported by contact_system
+    if dirichlet:  # unknown names are reported by contact_layout
         check_held(mesh, mesh.edge_nodes(dirichlet), source=case.source)
     contact = [name for name in case.boundary["contact"] if name in mesh.edges]
     check_dofs(2.0 * mesh.n_nodes, element=mesh.element, what="the mesh made", source=case.source,
                max_dofs=max_dofs, n_contact=len(mesh.edge_nodes(contact)))  # what is real
     t1 = time.perf_counter()
-    K_lam, K_G = assemble_elasticity(mesh)
-    t2 = time.perf_counter()
-    system = contact_system(mesh, K_lam, K_G, contact=case.boundary["contact"],
+    layout = contact_layout(mesh, contact=case.boundary["contact"],
                             dirichlet=case.boundary["dirichlet"], source=case.source)
+    t2 = time.perf_counter()
+    plan = []
+
+    def start(pattern) -> None:  # the analysis runs while the values are assembled
+        s = case.solve
+        plan.append(eigen.plan_dense(
+            *free_upper_pattern(pattern.indptr, pattern.indices, layout.fixed),
+            layout.contact_dofs, method=s["method"], shift=s["shift"], backend=s["backend"]))
+
+    K_lam, K_G = assemble_elasticity(mesh, on_pattern=start if _plan else None)
     t3 = time.perf_counter()
-    return Prepared(mesh, system, {"mesh": t1 - t0, "assembly": t2 - t1, "contact": t3 - t2},
-                    made_from=_mesh_inputs(case))
+    system = contact_system(mesh, K_lam, K_G, contact=case.boundary["contact"],
+                            dirichlet=case.boundary["dirichlet"], source=case.source,
+                            layout=layout)
+    t4 = time.perf_counter()
+    return Prepared(mesh, system, {"mesh": t1 - t0, "assembly": t3 - t2,
+                                   "contact": t4 - t3 + t2 - t1},
+                    made_from=_mesh_inputs(case), plan=plan[0] if plan else None)
 
 
 def _mesh_inputs(case: Case) -> dict:
@@ -255,7 +274,8 @@ def solve_prepared(prep: Prepared, case: Case, *, _release: bool = False) -> Res
     s = case.solve
     system = prep.system
     state = contact_state(case, system)  # None: all slipping ([contact])
-    K = system.stiffness(lam, G)
+    plan, prep.plan = prep.plan, None
+    K = system.stiffness(lam, G, keep_zeros=plan is not None)  # the planned pattern
     if _release:  # solve_case's own prepared case: the parts are not needed again, and
         # at 1 M DOFs they are 0.4 GB beside the factorization (the peak)
         system = prep.system = dataclasses.replace(system, K_lam=None, K_G=None,
@@ -263,7 +283,8 @@ def solve_prepared(prep: Prepared, case: Case, *, _release: bool = False) -> Res
     spec = eigen.solve(K, system, state, method=s["method"],
                        count=s["count"],
                        shift=s["shift"], tol=s["tol"], maxiter=s["maxiter"],
-                       real_tol=s["real_tol"], gamma=s["gamma"], backend=s["backend"])
+                       real_tol=s["real_tol"], gamma=s["gamma"], backend=s["backend"],
+                       plan=plan)
     modes = [
         {
             "alpha": m.alpha,
@@ -299,5 +320,5 @@ def solve_case(case: Case | dict | str | Path, *, overrides: dict[str, Any] | No
         case = load_case(case, overrides=overrides)
     elif overrides:
         case = case.with_overrides(overrides)
-    return solve_prepared(prepare(case, max_dofs=max_dofs, trust_geo=trust_geo), case,
-                          _release=True)
+    return solve_prepared(prepare(case, max_dofs=max_dofs, trust_geo=trust_geo, _plan=True),
+                          case, _release=True)

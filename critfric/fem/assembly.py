@@ -69,16 +69,20 @@ def cell_geometry(mesh: Mesh, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return values, det, grads
 
 
-def assemble_elasticity(mesh: Mesh) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+def assemble_elasticity(mesh: Mesh, *, on_pattern=None) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     """CSR matrices ``(K_lam, K_G)`` over all 2 * n_nodes DOFs with ``K = lam K_lam + G K_G``,
-    assembled into the mesh's precomputed pattern (:class:`.pattern.BlockPattern`)."""
+    assembled into the mesh's precomputed pattern (:class:`.pattern.BlockPattern`).
+    ``on_pattern(pattern)`` is called with that pattern (the cells checked) before the values
+    are summed: work that needs only the sparsity can start there."""
     element = get_element(mesh.element)
     if element.name != "P1":  # also reject cells inverted at nodes (P1: J is constant)
         _jacobians(mesh, element.shape(element.doflocs)[1])
     xi, w = element.quadrature()
-    _, det, grads = cell_geometry(mesh, xi)
+    _, det, grads = cell_geometry(mesh, xi)  # every cell checked before its pattern is used
     wdet = det * w  # (n_cells, n_qp)
     pattern = BlockPattern(mesh.cells, mesh.n_nodes)
+    if on_pattern is not None:
+        on_pattern(pattern)
     # node block (a, b) of K_lam: B_km = int d_k N_a d_m N_b, summed over the cells
     B = [[pattern.block_sums(_gradient_products(grads, wdet, k, m)) for m in range(2)]
          for k in range(2)]

@@ -57,8 +57,9 @@ class ContactSystem:
     def n_contact(self) -> int:
         return len(self.nodes)
 
-    def stiffness(self, lam: float, G: float) -> sp.csr_matrix:
-        """lam K_lam + G K_G; parts of one sparsity (as assembled) combine entry by entry."""
+    def stiffness(self, lam: float, G: float, *, keep_zeros: bool = False) -> sp.csr_matrix:
+        """lam K_lam + G K_G; parts of one sparsity (as assembled) combine entry by entry.
+        ``keep_zeros``: keep that sparsity's zero entries (a pattern known in advance)."""
         A, B = self.K_lam, self.K_G
         if (A.shape == B.shape and A.nnz == B.nnz and A.has_sorted_indices
                 and B.has_sorted_indices and np.array_equal(A.indptr, B.indptr)
@@ -69,7 +70,8 @@ class ContactSystem:
             # without the pattern's zero entries, as the sparse sum gives it: the same
             # factorization bit for bit (kept zeros moved the Newton check of the inclined
             # body's branch by 2e-10 on SuperLU)
-            K.eliminate_zeros()
+            if not keep_zeros:
+                K.eliminate_zeros()
             return K
         return (lam * A + G * B).tocsr()
 
@@ -221,9 +223,33 @@ def _split_free(mats: list, fixed: np.ndarray) -> list:
              sp.csr_matrix((A.data[fd], fd_col, fd_ptr), shape=(m, d))) for A in mats]
 
 
-def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix, *, contact: list[str],
-                   dirichlet: list[str], source: str = "") -> ContactSystem:
-    """Classify the boundary nodes and restrict the stiffness parts to the free DOFs."""
+@dataclass(frozen=True)
+class Layout:
+    """Which DOFs a contact system keeps, known from the mesh alone (before any assembly).
+
+    nodes, normal, tangent : as in :class:`ContactSystem`.
+    fixed : (2 * n_nodes,) mask of the Dirichlet DOFs.
+    """
+
+    nodes: np.ndarray
+    normal: np.ndarray
+    tangent: np.ndarray
+    fixed: np.ndarray
+
+    @property
+    def free(self) -> np.ndarray:
+        return np.flatnonzero(~self.fixed)
+
+    @property
+    def contact_dofs(self) -> np.ndarray:
+        """Positions within the free DOFs of the normal, then the tangential, contact DOFs."""
+        position = np.cumsum(~self.fixed) - 1
+        return np.concatenate([position[2 * self.nodes], position[2 * self.nodes + 1]])
+
+
+def contact_layout(mesh: Mesh, *, contact: list[str], dirichlet: list[str],
+                   source: str = "") -> Layout:
+    """Classify the boundary nodes of a mesh: contact nodes and basis, Dirichlet DOFs."""
     for key, names in (("boundary.contact", contact), ("boundary.dirichlet", dirichlet)):
         missing = [n for n in names if n not in mesh.edges or len(mesh.edges[n]) == 0]
         if missing:
@@ -231,11 +257,37 @@ def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix, *, contact:
                             + ", ".join(sorted(mesh.edges)), file=source, key=key)
     dirichlet_nodes = mesh.edge_nodes(dirichlet)
     nodes, normal, tangent = contact_geometry(mesh, contact, dirichlet_nodes, source=source)
-    n_dof = 2 * mesh.n_nodes
-    fixed = np.zeros(n_dof, dtype=bool)
+    fixed = np.zeros(2 * mesh.n_nodes, dtype=bool)
     fixed[2 * dirichlet_nodes] = fixed[2 * dirichlet_nodes + 1] = True
+    return Layout(nodes, normal, tangent, fixed)
+
+
+def free_upper_pattern(indptr: np.ndarray, indices: np.ndarray,
+                       fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(indptr, indices) of the upper triangle (diagonal included) of the free-DOF block of a
+    sorted CSR pattern over all DOFs (``fixed``: the Dirichlet mask): the pattern of
+    ``upper_triangle(system.stiffness(lam, G, keep_zeros=True))`` when the parts were
+    assembled on that pattern (the n/t rotation changes no entry's place)."""
+    n = len(indptr) - 1
+    row = np.repeat(np.arange(n, dtype=indices.dtype), np.diff(indptr))
+    free = ~fixed
+    keep = free[row] & free[indices] & (indices >= row)
+    position = (np.cumsum(free) - 1).astype(indices.dtype)
+    ptr = np.zeros(int(free.sum()) + 1, dtype=indptr.dtype)
+    np.cumsum(np.bincount(position[row[keep]], minlength=len(ptr) - 1), out=ptr[1:])
+    return ptr, position[indices[keep]]
+
+
+def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix, *, contact: list[str],
+                   dirichlet: list[str], source: str = "",
+                   layout: Layout | None = None) -> ContactSystem:
+    """Classify the boundary nodes (or take ``layout``, :func:`contact_layout` of the same
+    arguments) and restrict the stiffness parts to the free DOFs."""
+    if layout is None:
+        layout = contact_layout(mesh, contact=contact, dirichlet=dirichlet, source=source)
+    nodes, normal, tangent, fixed = layout.nodes, layout.normal, layout.tangent, layout.fixed
     free = np.flatnonzero(~fixed)
-    position = np.full(n_dof, -1, dtype=np.int64)
+    position = np.full(len(fixed), -1, dtype=np.int64)
     position[free] = np.arange(len(free))
     fixed_dofs = np.flatnonzero(fixed)
     # K_FF and K_FD (Q is the identity on the Dirichlet DOFs) of Q^T K Q, for each part

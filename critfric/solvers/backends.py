@@ -12,23 +12,20 @@ Backends (``BACKENDS``; ``"auto"`` takes the first available of ``PREFERENCE``):
   default COLAMD (~16x slower and ~8x larger on these matrices): nested dissection of the mesh
   when the caller gives it (:mod:`critfric.solvers.ordering`, ~3x faster than the
   alternative), else minimum degree on A^T + A. Its Schur complement comes from the same
-  factorization, with the Schur rows ordered last; from SPLIT_MIN_ROWS rows on, from the two
-  halves of a bisection factored one after the other (:class:`SplitSchur`), in about two
+  factorization, with the Schur rows ordered last; from SPLIT_MIN_ROWS rows on, from the
+  pieces of a partition factored two at a time in threads (:class:`SplitSchur`), in about two
   thirds of the memory.
 * ``pardiso``: Intel MKL PARDISO, from the ``pypardiso`` wheel (``pip install
-  critfric[fast]``, x86-64), called directly through ctypes: METIS ordering, Cholesky-class
-  factorization (mtype 2) and the Schur complement computed during the factorization
-  itself (iparm[35] = 2), solves without PARDISO's default iterative refinement.
+  critfric[fast]``, x86-64), called directly through ctypes (:mod:`.pardiso`): METIS
+  ordering, Cholesky-class factorization (mtype 2) and the Schur complement computed during
+  the factorization itself; its analysis can start from the pattern before the values exist
+  (``schur(..., plan=PardisoPlan(...))``).
 """
 
 from __future__ import annotations
 
-import ctypes
-import functools
-import importlib.metadata
-import importlib.util
-import threading
-import weakref
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import scipy.linalg as la
@@ -36,10 +33,13 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..errors import SolverError
+from .pardiso import SINGULAR as _SINGULAR
+from .pardiso import PardisoFactor, PardisoPlan, pardiso_library, upper_triangle
 from .superlu import trailing_blocks
 
 BACKENDS = ("scipy", "pardiso")
 SPLIT_MIN_ROWS = 400_000  # SciPy's Schur complement by substructuring from here on (memory)
+SPLIT_WORKERS = 2  # pieces factored at once (threads; at most the CPUs this process may use)
 REFINE_STEPS = 3  # ScipySchur.extend: refinement steps on the contact rows (1-2 are used)
 PREFERENCE = ("pardiso", "scipy")  # "auto": fastest first
 
@@ -49,7 +49,7 @@ _SINGULAR = ("the stiffness matrix is singular. Check that the Dirichlet edges h
 
 def available_backends() -> tuple[str, ...]:
     """Backends that can run here, fastest first."""
-    return tuple(b for b in PREFERENCE if b == "scipy" or _pardiso_library() is not None)
+    return tuple(b for b in PREFERENCE if b == "scipy" or pardiso_library() is not None)
 
 
 def resolve_backend(backend: str = "auto") -> str:
@@ -94,161 +94,6 @@ class ScipyFactor:
         x = np.empty_like(b)
         x[self._order] = self._lu.solve(np.ascontiguousarray(b[self._order]), trans=trans)
         return x
-
-
-# ------------------------------------------------------------------------------- PARDISO
-@functools.cache
-def _pardiso_library():
-    """MKL's ``pardiso`` entry point (None if absent): mkl_rt from the ``mkl`` wheel's file
-    list (fast), else found the way pypardiso finds it (importing it searches directories)."""
-    if importlib.util.find_spec("pypardiso") is None:
-        return None
-    try:
-        rt = [f for f in importlib.metadata.files("mkl") or [] if "libmkl_rt" in f.name]
-        lib = ctypes.CDLL(str(rt[0].locate()))
-    except (importlib.metadata.PackageNotFoundError, IndexError, OSError):
-        try:
-            import pypardiso
-            lib = pypardiso.PyPardisoSolver().libmkl
-        except (ImportError, OSError, AttributeError):
-            return None
-    p, i32 = ctypes.c_void_p, ctypes.POINTER(ctypes.c_int32)
-    fn = lib.pardiso
-    fn.argtypes = [p, i32, i32, i32, i32, i32, p, i32, i32, i32, i32, i32, i32, p, p, i32]
-    fn.restype = None
-    init = lib.pardisoinit
-    init.argtypes = [p, i32, i32]
-    init.restype = None
-    return fn, init
-
-
-_PARDISO_ERRORS = {-1: "input inconsistent", -2: "not enough memory",
-                   -3: "reordering problem", -4: "zero pivot: " + _SINGULAR,
-                   -7: "diagonal matrix is singular: " + _SINGULAR}
-
-
-class PardisoFactor:
-    """MKL PARDISO: symmetric positive definite (mtype 2) or general (mtype 11) matrices.
-
-    With ``schur_index`` the factorization also returns the dense Schur complement onto
-    those rows/columns (``self.S``, in the order given) and keeps the interior factors for
-    :meth:`extend`.
-    """
-
-    backend = "pardiso"
-
-    def __init__(self, A: sp.spmatrix, *, symmetric: bool, schur_index=None):
-        fn, init = _pardiso_library()
-        self._fn, n = fn, A.shape[0]
-        if symmetric and not np.all(A.diagonal() > 0):
-            raise SolverError(f"the matrix has a non-positive diagonal entry: {_SINGULAR}")
-        A = upper_triangle(A) if symmetric else sp.csr_matrix(A)
-        A.sort_indices()
-        if A.nnz >= 2**31:
-            raise SolverError(f"{A.nnz} nonzeros is too many for PARDISO's 32-bit interface; "
-                              "use backend = 'scipy'")
-        self._a = np.ascontiguousarray(A.data, dtype=np.float64)
-        self._ia = A.indptr.astype(np.int32)
-        self._ja = A.indices.astype(np.int32)
-        self.mtype = 2 if symmetric else 11
-        self.shape = (n, n)
-        self._pt = np.zeros(64, dtype=np.int64)
-        self._iparm = np.zeros(64, dtype=np.int32)
-        init(self._pt.ctypes.data, _int(self.mtype), self._iparm.ctypes.data_as(_I32))
-        self._iparm[0] = 1   # iparm given
-        self._iparm[1] = 2   # METIS nested dissection
-        self._iparm[7] = 0   # no iterative refinement beyond what perturbed pivots ask for
-        self._iparm[34] = 1  # zero-based indices
-        self._perm = np.zeros(n, dtype=np.int32)
-        weakref.finalize(self, _pardiso_release, fn, self._pt, self.mtype, n)
-        if schur_index is None:
-            self._call(12, 1, np.zeros(n), np.zeros(n))
-            return
-        index = np.asarray(schur_index)
-        self._perm[index] = 1
-        self._iparm[35] = 2  # Schur complement, keep the interior factors for phase 333
-        ns = len(index)
-        buf = np.zeros(max(ns * ns, n))
-        self._call(12, 1, np.zeros(n), buf)
-        # PARDISO orders the Schur rows by increasing global index
-        pos = np.searchsorted(np.sort(index), index)
-        S = buf[:ns * ns].reshape(ns, ns)[np.ix_(pos, pos)]
-        self.S = 0.5 * (S + S.T)
-        self._index = index
-
-    def _call(self, phase: int, nrhs: int, b: np.ndarray, x: np.ndarray) -> None:
-        err = ctypes.c_int32(0)
-        with _MKL_LOCK:
-            self._fn(self._pt.ctypes.data, _int(1), _int(1), _int(self.mtype), _int(phase),
-                     _int(self.shape[0]), self._a.ctypes.data, self._ia.ctypes.data_as(_I32),
-                     self._ja.ctypes.data_as(_I32), self._perm.ctypes.data_as(_I32),
-                     _int(nrhs), self._iparm.ctypes.data_as(_I32), _int(0), b.ctypes.data,
-                     x.ctypes.data, ctypes.byref(err))
-        if err.value != 0:
-            what = _PARDISO_ERRORS.get(err.value, "see the MKL PARDISO error codes")
-            raise SolverError(f"PARDISO phase {phase} failed with error {err.value} ({what}); "
-                              "try backend = 'scipy'")
-
-    def solve(self, b: np.ndarray, *, transpose: bool = False) -> np.ndarray:
-        """A^-1 b (A^-T b with ``transpose``) for b of shape (n,) or (n, k)."""
-        b = np.asarray(b, dtype=np.float64)
-        bt = np.ascontiguousarray(b.T)  # column-major right-hand sides
-        x = np.zeros_like(bt)
-        self._iparm[11] = 2 if transpose and self.mtype != 2 else 0  # A^T x = b
-        try:
-            self._call(33, 1 if b.ndim == 1 else b.shape[1], bt, x)
-        finally:
-            self._iparm[11] = 0
-        return x.T
-
-    def extend(self, xc: np.ndarray) -> np.ndarray:
-        xc = np.asarray(xc, dtype=np.float64)
-        b = np.zeros(xc.shape[1:][::-1] + (self.shape[0],))
-        b[..., self._index] = xc.T
-        x = np.zeros_like(b)
-        self._call(333, 1 if xc.ndim == 1 else xc.shape[1], b, x)
-        return x.T
-
-
-_I32 = ctypes.POINTER(ctypes.c_int32)
-
-
-def upper_triangle(A: sp.spmatrix) -> sp.csr_matrix:
-    """The upper triangle (diagonal included) of a square matrix as sorted CSR: one mask over
-    the entries (what ``sp.triu`` gives, ~4x faster at 1 M rows)."""
-    A = sp.csr_matrix(A)
-    if not A.has_sorted_indices:
-        A = A.sorted_indices()
-    n = A.shape[0]
-    row = np.repeat(np.arange(n, dtype=A.indices.dtype), np.diff(A.indptr))
-    keep = A.indices >= row
-    ptr = np.zeros(n + 1, dtype=A.indptr.dtype)
-    np.cumsum(np.bincount(row[keep], minlength=n), out=ptr[1:])
-    U = sp.csr_matrix((A.data[keep], A.indices[keep], ptr), shape=A.shape)
-    U.has_sorted_indices = True
-    return U
-
-
-def _int(value: int):
-    return ctypes.byref(ctypes.c_int32(value))
-
-
-#: every MKL PARDISO call, the finalizers' releases included, one at a time: a factor freed
-#: by the cyclic garbage collector is released in whatever thread the collection ran (pytest
-#: workers' I/O threads, a user's threads), possibly during another factor's call; a full
-#: suite under pytest -n 2 aborted twice in phase 12 with a corrupted heap
-_MKL_LOCK = threading.RLock()
-
-
-def _pardiso_release(fn, pt, mtype, n) -> None:
-    """Phase -1 on ``pt``, with arrays of the sizes PARDISO's interface declares."""
-    zero, index = np.zeros(n), np.zeros(n + 1, dtype=np.int32)
-    iparm = np.zeros(64, dtype=np.int32)
-    with _MKL_LOCK:
-        fn(pt.ctypes.data, _int(1), _int(1), _int(mtype), _int(-1), _int(n), zero.ctypes.data,
-           index.ctypes.data_as(_I32), index.ctypes.data_as(_I32), index.ctypes.data_as(_I32),
-           _int(1), iparm.ctypes.data_as(_I32), _int(0), zero.ctypes.data, zero.ctypes.data,
-           ctypes.byref(ctypes.c_int32(0)))
 
 
 # ------------------------------------------------------------------------------- interface
@@ -335,104 +180,114 @@ class ScipySchur:
 
 
 class SplitSchur:
-    """Schur complement by substructuring: SuperLU factors the two halves of a bisection one
-    at a time, each with its interface last, so that only one half's factors (about half of
-    the whole matrix's) are ever in memory.
+    """Schur complement by substructuring: SuperLU factors the pieces of a partition one per
+    worker thread at a time (SuperLU is sequential and releases the GIL), each with its
+    interface last, so that at most ``workers`` pieces' factors are ever in memory.
 
-    ``halves``: 0 or 1 for the two halves' rows, 2 for a separator such that no entry of A
-    joins the halves. The interface is I = [index, separator rows not in index]; half h
-    touches only the part I_h of I not in the other half, and gives, as :class:`ScipySchur`
-    with I_h last, S_h = A_(I_h I_h) - A_(I_h h) A_hh^-1 A_(h I_h). The Schur complement onto
-    I is A_II plus each S_h - A_(I_h I_h) in its rows and columns; onto ``index``, that with
-    the separator rows eliminated densely. :meth:`extend` sets the separator rows from the
-    contact values, then extends into each half: the half whose factors are still there
-    first, then the other's interior, factored again without its interface (two half
-    factorizations and one of a half's interior in all)."""
+    ``pieces``: a piece number (>= 0) for each row, -1 for separator rows, such that no
+    entry of A joins two pieces. The interface is I = [index, separator rows not in index];
+    piece h, adjacent to the part I_h of I, gives as :class:`ScipySchur` with I_h last
+    S_h = A_(I_h I_h) - A_(I_h h) A_hh^-1 A_(h I_h). The Schur complement onto I is A_II plus
+    each S_h - A_(I_h I_h) in its rows and columns; onto ``index``, that with the separator
+    rows eliminated densely. :meth:`extend` sets the separator rows from the contact values,
+    then extends into each piece by its interior alone, factored again (~2x cheaper than with
+    its interface: no dense block; keeping pieces' factors instead would hold ``workers`` of
+    them through the dense stage: peak 2.80 against 2.2 GB at 1.3 M rows, measured)."""
 
     backend = "scipy"
 
-    def __init__(self, A: sp.spmatrix, index: np.ndarray, halves: np.ndarray, order=None):
+    def __init__(self, A: sp.spmatrix, index: np.ndarray, pieces: np.ndarray, order=None,
+                 workers: int = 1):
         A = sp.csr_matrix(A)
         n, k = A.shape[0], len(index)
-        halves = np.asarray(halves)
         in_index = np.zeros(n, dtype=bool)
         in_index[index] = True
-        label = np.where(in_index, 2, halves)  # the rows of ``index`` join the interface
+        label = np.where(in_index, -1, np.asarray(pieces))  # index rows join the interface
+        ids, label[label >= 0] = np.unique(label[label >= 0], return_inverse=True)
         order = np.arange(n) if order is None else np.asarray(order)
         side = label[order]
-        self._rows = [order[side == h] for h in (0, 1)]
-        sep = order[(side == 2) & ~in_index[order]]
-        # an entry of A in a row of one half and a column of the other: no bisection
-        row_label = np.repeat(label, np.diff(A.indptr))
-        if not (len(self._rows[0]) and len(self._rows[1]) and len(sep)) or np.any(
-                row_label + label[A.indices] == 1):
+        self._rows = [order[side == h] for h in range(len(ids))]
+        sep = order[(side < 0) & ~in_index[order]]
+        row_label, col_label = np.repeat(label, np.diff(A.indptr)), label[A.indices]
+        joined = (row_label >= 0) & (col_label >= 0) & (row_label != col_label)
+        if len(ids) < 2 or not len(sep) or np.any(joined):  # no partition
             raise _NoSplit
         interface = np.concatenate([index, sep]).astype(np.int64)
-        self._touch = [np.flatnonzero(halves[interface] != 1 - h) for h in (0, 1)]
-        self._A, self._interface = A, interface
-        self.shape, self._half = (n, n), None
-        A_II = A[interface][:, interface].toarray()
-        S_I = A_II.copy()
-        for h in (0, 1):  # the second half's factors stay for extend
-            t = np.ix_(self._touch[h], self._touch[h])
-            S_I[t] += self._factor(h).S - A_II[t]
-        S_I = 0.5 * (S_I + S_I.T)
-        try:
-            self._sep = la.cho_factor(S_I[k:, k:])
+        position = np.full(n, -1)
+        position[interface] = np.arange(len(interface))
+        at = (row_label >= 0) & (col_label < 0)  # piece rows, interface columns
+        pairs = np.unique(row_label[at] * len(interface) + position[A.indices[at]])
+        self._touch = np.split(pairs % len(interface),
+                               np.searchsorted(pairs // len(interface), np.arange(1, len(ids))))
+        self._A, self._interface, self._workers = A, interface, max(1, workers)
+        self.shape = (n, n)
+        A_II = A[interface][:, interface]  # sparse: the dense S_I is the one large copy
+        S_I = A_II.toarray()
+        for h, S_h in enumerate(self._map(lambda h: self._factor(h).S, range(len(ids)))):
+            touch = self._touch[h]
+            S_I[np.ix_(touch, touch)] += S_h - A_II[touch][:, touch].toarray()
+        self._S_sc = S_I[k:, :k].copy()
+        try:  # reads one triangle of the separator block
+            self._sep = la.cho_factor(S_I[k:, k:], overwrite_a=True)
         except la.LinAlgError:
             raise SolverError("the Schur complement onto the separator is not positive "
                               f"definite: {_SINGULAR}") from None
-        self._S_sc = S_I[k:, :k]
         S = S_I[:k, :k] - self._S_sc.T @ la.cho_solve(self._sep, self._S_sc)
         self.S = 0.5 * (S + S.T)
 
+    def _map(self, fn, items) -> list:
+        """fn over items, ``workers`` at a time (in order)."""
+        items = list(items)
+        if self._workers == 1 or len(items) < 2:
+            return [fn(h) for h in items]
+        with ThreadPoolExecutor(min(self._workers, len(items))) as pool:
+            return list(pool.map(fn, items))
+
     def _factor(self, h: int) -> ScipySchur:
-        """Half h's factorization with its interface last; the other's is dropped first."""
-        self._half = None  # one half's factors are freed before the other's are made
+        """Piece h's factorization with its interface last."""
         rows = np.concatenate([self._rows[h], self._interface[self._touch[h]]])
         tail = np.arange(len(self._rows[h]), len(rows))
-        self._half = (h, ScipySchur(self._A[rows][:, rows], tail, order=np.arange(len(rows))))
-        return self._half[1]
+        return ScipySchur(self._A[rows][:, rows], tail, order=np.arange(len(rows)))
 
     def extend(self, xc: np.ndarray) -> np.ndarray:
         """x with x[index] = xc and (A x)_i = 0 on the other rows."""
         xc = np.asarray(xc, dtype=np.float64)
         x_I = np.concatenate([xc, -la.cho_solve(self._sep, self._S_sc @ xc)])
         x = np.zeros((self.shape[0],) + xc.shape[1:])
-        kept = self._half[0] if self._half else None
-        for h in sorted((0, 1), key=lambda h: h != kept):
+
+        def interior(h: int) -> np.ndarray:  # rows solving A_hh x_h = -A_hI x_I
             rows, touch = self._rows[h], self._interface[self._touch[h]]
-            if h == kept:
-                x[rows] = self._half[1].extend(x_I[self._touch[h]])[:len(rows)]
-                continue
-            # the other half's interior alone (no dense interface block: ~2x cheaper), its
-            # rows solving A_hh x_h = -A_hI x_I; the kept half's factors are freed first
-            self._half = None
-            interior = ScipyFactor(self._A[rows][:, rows], symmetric=True,
-                                   order=np.arange(len(rows)))
-            x[rows] = -interior.solve(self._A[rows][:, touch] @ x_I[self._touch[h]])
+            f = ScipyFactor(self._A[rows][:, rows], symmetric=True, order=np.arange(len(rows)))
+            return -f.solve(self._A[rows][:, touch] @ x_I[self._touch[h]])
+
+        for h, x_h in enumerate(self._map(interior, range(len(self._rows)))):
+            x[self._rows[h]] = x_h
         x[self._interface] = x_I
         return x
 
 
 class _NoSplit(Exception):
-    """The halves given to :class:`SplitSchur` are empty or not separated."""
+    """The pieces given to :class:`SplitSchur` are fewer than two or not separated."""
 
 
 def schur(A: sp.spmatrix, index: np.ndarray, *, backend: str = "scipy", order=None,
-          halves=None):
+          pieces=None, plan: PardisoPlan | None = None):
     """Dense Schur complement of a symmetric positive definite A onto ``index`` (object with
-    ``S``, ``extend(x_c)`` and ``backend``); ``order`` as for :func:`factorize`. ``halves``: a
-    bisection of A's rows as :class:`SplitSchur` takes it, or a function that makes one; SciPy
-    substructures on it from SPLIT_MIN_ROWS rows on (peak memory 4.0 -> 2.7 GB at 1.3 M
-    rows, measured)."""
+    ``S``, ``extend(x_c)`` and ``backend``); ``order`` as for :func:`factorize`. ``pieces``: a
+    partition of A's rows as :class:`SplitSchur` takes it, or a function that makes one; SciPy
+    substructures on it from SPLIT_MIN_ROWS rows on, SPLIT_WORKERS pieces at a time.
+    ``plan``: a :class:`PardisoPlan` of A's pattern, used if it matches."""
     index = np.asarray(index, dtype=np.int64)
     backend = resolve_backend(backend)
     if backend == "pardiso" and len(index) < A.shape[0]:
-        return PardisoFactor(A, symmetric=True, schur_index=index)
-    if halves is not None and A.shape[0] >= SPLIT_MIN_ROWS:
+        factor = plan.schur(A, index) if plan is not None else None
+        return factor or PardisoFactor(A, symmetric=True, schur_index=index)
+    if pieces is not None and A.shape[0] >= SPLIT_MIN_ROWS:
+        cpus = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
+        workers = min(SPLIT_WORKERS, len(cpus) if cpus else os.cpu_count() or 1)
         try:
-            return SplitSchur(A, index, halves() if callable(halves) else halves, order=order)
-        except _NoSplit:  # no bisection of A's graph: one factorization of the whole
+            return SplitSchur(A, index, pieces() if callable(pieces) else pieces, order=order,
+                              workers=workers)
+        except _NoSplit:  # no partition of A's graph: one factorization of the whole
             pass
     return ScipySchur(A, index, order=order)

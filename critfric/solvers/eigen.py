@@ -52,8 +52,8 @@ from threadpoolctl import threadpool_limits
 
 from ..errors import SolverError
 from ..fem.contact import FREE, SLIP, STUCK, ContactSystem
-from .backends import factorize, resolve_backend, schur
-from .ordering import fill_order, halves
+from .backends import PardisoPlan, factorize, resolve_backend, schur
+from .ordering import fill_order, pieces
 
 INFINITE_TOL = 1e-6
 RESIDUAL_TOL = 1e-6
@@ -221,8 +221,9 @@ def _fill_order(system: ContactSystem, dofs: np.ndarray, backend: str):
 
 
 def solve_dense(K, system: ContactSystem, state: ContactState, *, count: int,
-                real_tol: float, backend: str = "scipy") -> Spectrum:
-    """Every eigenvalue, from the dense pencil on the Schur complement onto Gamma_C."""
+                real_tol: float, backend: str = "scipy", plan=None) -> Spectrum:
+    """Every eigenvalue, from the dense pencil on the Schur complement onto Gamma_C (``plan``:
+    :func:`plan_dense`'s analysis of K's pattern, if any)."""
     prob = _Problem(K, system, state)
     p = system.n_contact
     if p > SCHUR_MAX_CONTACT:
@@ -230,7 +231,7 @@ def solve_dense(K, system: ContactSystem, state: ContactState, *, count: int,
                           f"({p} contact nodes > {SCHUR_MAX_CONTACT}); use method = 'arpack'")
     sc = schur(K, np.concatenate([system.cn, system.ct]), backend=backend,
                order=_fill_order(system, np.arange(K.shape[0]), backend),
-               halves=lambda: halves(system))
+               pieces=lambda: pieces(system), plan=plan)
     spec = schur_spectrum(prob, sc.S, sc.extend, count=count, real_tol=real_tol)
     spec.backend = sc.backend
     return spec
@@ -386,17 +387,36 @@ def _finish(prob, alpha, real, index, phis_of, count, method, n_inf, application
     return spec
 
 
+def plan_dense(indptr: np.ndarray, indices: np.ndarray, contact_dofs: np.ndarray, *,
+               method="auto", shift=0.0, backend="auto") -> PardisoPlan | None:
+    """Start PARDISO's analysis of K from its upper-triangle pattern (sorted CSR ``indptr``,
+    ``indices``) and ``contact_dofs`` (``cn`` then ``ct``), in the background, where
+    :func:`solve` with these arguments takes the dense path on PARDISO (else None): pass it
+    to :func:`solve` as ``plan`` with K of that pattern."""
+    try:
+        backend = resolve_backend(backend)
+    except SolverError:  # solve() reports it
+        return None
+    p = len(contact_dofs) // 2
+    if (backend != "pardiso" or method not in ("auto", "dense") or shift != 0.0
+            or p > SCHUR_MAX_CONTACT or len(contact_dofs) >= len(indptr) - 1):
+        return None
+    return PardisoPlan(indptr, indices, contact_dofs)
+
+
 def solve(K, system: ContactSystem, state: ContactState | None = None, *, method="auto",
           count=1, shift=0.0, tol=0.0, maxiter=None, real_tol=1e-8, gamma=1,
-          backend="auto") -> Spectrum:
-    """Critical friction coefficients of a contact state (default: all nodes slipping)."""
+          backend="auto", plan=None) -> Spectrum:
+    """Critical friction coefficients of a contact state (default: all nodes slipping).
+    ``plan``: :func:`plan_dense` of K's pattern (used if the dense path runs on PARDISO)."""
     state = state or ContactState.all_slipping(system.n_contact, gamma)
     backend = resolve_backend(backend)
     if method == "auto":  # every eigenvalue whenever the Schur complement fits
         dense = system.n_contact <= SCHUR_MAX_CONTACT and shift == 0.0
         method = "dense" if dense or state.n_slip < 4 else "arpack"
     if method == "dense":
-        return solve_dense(K, system, state, count=count, real_tol=real_tol, backend=backend)
+        return solve_dense(K, system, state, count=count, real_tol=real_tol, backend=backend,
+                           plan=plan)
     if method == "arpack":
         return solve_arpack(K, system, state, count=count, shift=shift, tol=tol,
                             maxiter=maxiter, real_tol=real_tol, backend=backend)

@@ -19,6 +19,7 @@ import numpy as np
 
 LEAF = 16  # parts of at most this many nodes are not split further (64: 9% more fill)
 MAX_LEVELS = 50  # keeps the integer keys of the dissection tree exact
+PIECE_LEVELS = 3  # pieces() of substructuring: the parts after this many splits (8)
 
 
 def node_edges(cells: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -39,8 +40,9 @@ def nested_dissection(points: np.ndarray, cells: np.ndarray, *, leaf: int = LEAF
 
 
 def _dissect(points: np.ndarray, cells: np.ndarray, leaf: int = LEAF, levels: int = MAX_LEVELS):
-    """(rank, half): the elimination rank of every node and its side of the first split (0:
-    lower, 1: upper, 2: the top separator, which no cell crosses); ``levels`` of splits."""
+    """(rank, piece): the elimination rank of every node and its piece of the first
+    PIECE_LEVELS splits (0 ... 2**PIECE_LEVELS - 1; -1 for the separators of those splits:
+    no cell joins two pieces); ``levels`` of splits."""
     points = np.asarray(points, dtype=float)
     n = len(points)
     u, v = node_edges(cells, n)
@@ -83,9 +85,12 @@ def _dissect(points: np.ndarray, cells: np.ndarray, leaf: int = LEAF, levels: in
     depth = level
     span = np.left_shift(np.int64(1), depth - stop)  # width of the node's subtree interval
     key = np.where(sep, (code + 1) * span - 1, code * span)
-    half = np.where(stop > 0, np.right_shift(code, np.maximum(stop - 1, 0)) & 1, 0)
-    half[sep & (stop == 0)] = 2
-    return np.argsort(np.lexsort((np.arange(n), -stop, sep, key))), half
+    # a node that left at level s carries s bits of path: its top PIECE_LEVELS bits, or, for
+    # a part that stopped splitting earlier, the first piece of the range it would cover
+    top = np.minimum(stop, PIECE_LEVELS)
+    piece = np.left_shift(np.right_shift(code, stop - top), PIECE_LEVELS - top)
+    piece[sep & (stop < PIECE_LEVELS)] = -1
+    return np.argsort(np.lexsort((np.arange(n), -stop, sep, key))), piece
 
 
 def dof_order(nodes: np.ndarray, rank: np.ndarray) -> np.ndarray:
@@ -164,15 +169,15 @@ def _dissected(system, dofs: np.ndarray) -> bool:
     return len(dofs) >= ND_MIN_DOFS and system.mesh.element in ("P1", "Q1")
 
 
-def halves(system, dofs: np.ndarray | None = None) -> np.ndarray:
-    """The side of the first nested-dissection split of each free DOF ``dofs`` (default: all):
-    0 and 1 for the two halves, 2 for the separator between them (no entry of K joins the
-    halves). Where :func:`fill_order` dissects the mesh these are its order's halves; else
-    the same first split alone."""
+def pieces(system, dofs: np.ndarray | None = None) -> np.ndarray:
+    """The piece of each free DOF ``dofs`` (default: all) after the first PIECE_LEVELS
+    nested-dissection splits: 0 ... 2**PIECE_LEVELS - 1, and -1 for the separators of those
+    splits (no entry of K joins two pieces). Where :func:`fill_order` dissects the mesh these
+    are its order's pieces; else the same first splits alone."""
     dofs = np.arange(len(system.free)) if dofs is None else np.asarray(dofs)
     mesh = system.mesh
     if _dissected(system, dofs):
-        half = _mesh_dissection(mesh)[1]
+        piece = _mesh_dissection(mesh)[1]
     else:
-        half = _dissect(mesh.points, mesh.cells, levels=1)[1]
-    return half[system.free[dofs] // 2]
+        piece = _dissect(mesh.points, mesh.cells, levels=PIECE_LEVELS)[1]
+    return piece[system.free[dofs] // 2]

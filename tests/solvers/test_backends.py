@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 import critfric
 from critfric.case import schema as case_module
-from critfric.case.schema import loads_case
+from critfric.case.schema import load_case, loads_case
 from critfric.cli.app import app
 from critfric.errors import CaseError, SolverError
 from critfric.fem.assembly import lame
@@ -175,7 +175,7 @@ def test_unknown_backend_is_a_case_error_naming_the_key():
 
 
 def test_missing_backend_is_a_solver_error(monkeypatch):
-    monkeypatch.setattr(linsolve, "_pardiso_library", lambda: None)
+    monkeypatch.setattr(linsolve, "pardiso_library", lambda: None)
     assert linsolve.available_backends() == ("scipy",)
     assert linsolve.resolve_backend("auto") == "scipy"
     with pytest.raises(SolverError, match="not available.*critfric\\[fast\\]"):
@@ -292,35 +292,140 @@ def test_upper_triangle_is_triu(density):
 
 @pytest.mark.parametrize("element", ["P1", "Q1", "P2"])
 def test_substructured_schur_equals_one_factorization(element, monkeypatch):
-    """SplitSchur (each half factored alone, the separator eliminated densely) gives the Schur
-    complement and the extensions of one factorization of the whole, and is what the SciPy
-    dense path takes from SPLIT_MIN_ROWS rows on, with the same spectrum and modes."""
+    """SplitSchur (each piece factored alone, one or two at a time, the separators eliminated
+    densely) gives the Schur complement and the extensions of one factorization of the
+    whole, and is what the SciPy dense path takes from SPLIT_MIN_ROWS rows on, with the same
+    spectrum and modes."""
     system = prepare(loads_case(square_case(element=element, size=0.05))).system
     K = system.stiffness(*lame(1.0, 0.3))
     index = np.concatenate([system.cn, system.ct])
     monkeypatch.setattr(ordering, "ND_MIN_DOFS", 0)  # P1/Q1 dissected, P2 minimum degree
-    halves, order = ordering.halves(system), ordering.fill_order(system)
-    assert set(np.unique(halves)) == {0, 1, 2} and np.count_nonzero(halves == 2) < 0.1 * len(halves)
+    pieces, order = ordering.pieces(system), ordering.fill_order(system)
+    assert set(np.unique(pieces)) == set(range(-1, 2**ordering.PIECE_LEVELS))
+    assert np.count_nonzero(pieces == -1) < 0.3 * len(pieces)  # a small mesh: 20% on P2
     whole = linsolve.ScipySchur(K, index, order=order)
-    split = linsolve.SplitSchur(K, index, halves, order=order)
-    np.testing.assert_allclose(split.S, whole.S, rtol=0, atol=1e-11 * np.abs(whole.S).max())
     xc = np.random.default_rng(3).standard_normal((len(index), 3))
-    x = split.extend(xc)
-    np.testing.assert_array_equal(x[index], xc)
-    np.testing.assert_allclose(x, whole.extend(xc), rtol=0, atol=1e-10 * np.abs(x).max())
     interior = np.ones(K.shape[0], dtype=bool)
     interior[index] = False
-    assert np.abs((K @ x)[interior]).max() < 1e-10 * abs(K).max() * np.abs(x).max()
+    for workers in (1, 2):
+        split = linsolve.SplitSchur(K, index, pieces, order=order, workers=workers)
+        np.testing.assert_allclose(split.S, whole.S, rtol=0, atol=1e-11 * np.abs(whole.S).max())
+        for _ in range(2):  # the second time without the kept factors
+            x = split.extend(xc)
+            np.testing.assert_array_equal(x[index], xc)
+            np.testing.assert_allclose(x, whole.extend(xc), rtol=0,
+                                       atol=1e-10 * np.abs(x).max())
+            assert np.abs((K @ x)[interior]).max() < 1e-10 * abs(K).max() * np.abs(x).max()
     state = mixed_state(system.n_contact)
     ref = eigen.solve(K, system, state, method="dense", count=2, backend="scipy")
     monkeypatch.setattr(linsolve, "SPLIT_MIN_ROWS", 0)
-    assert isinstance(linsolve.schur(K, index, order=order, halves=halves), linsolve.SplitSchur)
-    # halves that K joins, or an empty half, are no bisection: one factorization instead
-    for no_split in (np.arange(len(halves)) % 2, np.zeros_like(halves)):
-        assert isinstance(linsolve.schur(K, index, order=order, halves=no_split),
+    assert isinstance(linsolve.schur(K, index, order=order, pieces=pieces), linsolve.SplitSchur)
+    # pieces that K joins, or one piece, are no partition: one factorization instead
+    for no_split in (np.arange(len(pieces)) % 2, np.zeros_like(pieces)):
+        assert isinstance(linsolve.schur(K, index, order=order, pieces=no_split),
                           linsolve.ScipySchur)
     got = eigen.solve(K, system, state, method="dense", count=2, backend="scipy")
     np.testing.assert_allclose(got.positive[:2], ref.positive[:2], rtol=1e-10)
     np.testing.assert_allclose(got.negative[:2], ref.negative[:2], rtol=1e-10)
     for a, b in zip(got.modes, ref.modes):
         np.testing.assert_allclose(a.phi, b.phi, atol=1e-9)
+
+
+@pytest.mark.parametrize("element", ["P1", "Q1", "P2", "Q2"])
+def test_stiffness_pattern_is_known_before_its_values(element):
+    """free_upper_pattern (from the mesh's DOF pattern and the Dirichlet mask alone) is the
+    pattern of the upper triangle of the free stiffness with its zeros kept, and the layout's
+    contact DOFs are the system's [cn, ct]; contact_system with the layout given is the same."""
+    from critfric.fem.assembly import assemble_elasticity
+    from critfric.fem.contact import contact_layout, contact_system, free_upper_pattern
+
+    case = loads_case(square_case(element=element, size=0.2))
+    mesh = prepare(case).mesh
+    bc = dict(contact=case.boundary["contact"], dirichlet=case.boundary["dirichlet"])
+    layout = contact_layout(mesh, **bc)
+    seen = []
+    K_lam, K_G = assemble_elasticity(mesh, on_pattern=seen.append)
+    ptr, col = free_upper_pattern(seen[0].indptr, seen[0].indices, layout.fixed)
+    given, own = contact_system(mesh, K_lam, K_G, layout=layout, **bc), contact_system(
+        mesh, K_lam, K_G, **bc)
+    for a, b in ((given.K_lam, own.K_lam), (given.K_G, own.K_G), (given.D_G, own.D_G)):
+        assert (a != b).nnz == 0
+    np.testing.assert_array_equal(layout.contact_dofs, np.concatenate([own.cn, own.ct]))
+    np.testing.assert_array_equal(layout.free, own.free)
+    U = linsolve.upper_triangle(own.stiffness(*lame(1.0, 0.3), keep_zeros=True))
+    np.testing.assert_array_equal(U.indptr, ptr)
+    np.testing.assert_array_equal(U.indices, col)
+    K = own.stiffness(*lame(1.0, 0.3))  # without keep_zeros, the zeros go
+    assert K.nnz == np.count_nonzero(own.stiffness(*lame(1.0, 0.3), keep_zeros=True).data)
+
+
+@pytest.mark.skipif("pardiso" not in AVAILABLE,
+                    reason="backend 'pardiso' not installed (pip install critfric[fast])")
+def test_pardiso_analysis_started_from_the_pattern_gives_the_same_factorization():
+    """A PardisoPlan (phase 11 in a thread from the pattern, phase 22 on the values later)
+    gives PardisoFactor's S and extensions; a plan of another pattern or index is declined
+    (None: the caller factors afresh), a plan serves once, and solve_case uses one."""
+    prep = prepare(loads_case(square_case(element="P1", size=0.1)))
+    system = prep.system
+    K = system.stiffness(*lame(1.0, 0.3), keep_zeros=True)
+    index = np.concatenate([system.cn, system.ct])
+    U = linsolve.upper_triangle(K)
+    whole = linsolve.PardisoFactor(K, symmetric=True, schur_index=index)
+    plan = linsolve.PardisoPlan(U.indptr, U.indices, index)
+    planned = plan.schur(K, index)
+    np.testing.assert_allclose(planned.S, whole.S, rtol=0, atol=1e-13 * np.abs(whole.S).max())
+    xc = np.random.default_rng(5).standard_normal((len(index), 2))
+    np.testing.assert_allclose(planned.extend(xc), whole.extend(xc), rtol=0,
+                               atol=1e-12 * np.abs(whole.extend(xc)).max())
+    assert plan.schur(K, index) is None  # used once
+    assert linsolve.PardisoPlan(U.indptr, U.indices, index[::-1]).schur(K, index) is None
+    sparser = K.tolil()  # one coupling less: another pattern
+    i, j = U.indices[U.indptr[5] + 1], 5
+    sparser[i, j] = sparser[j, i] = 0.0
+    sparser = sparser.tocsr()
+    sparser.eliminate_zeros()
+    assert sparser.nnz == K.nnz - 2
+    assert linsolve.PardisoPlan(U.indptr, U.indices, index).schur(sparser, index) is None
+    S = linsolve.schur(K, index, backend="pardiso",  # declined: factored afresh
+                       plan=linsolve.PardisoPlan(U.indptr, U.indices, index[1:]))
+    np.testing.assert_allclose(S.S, whole.S, rtol=0, atol=1e-13 * np.abs(whole.S).max())
+
+
+@pytest.mark.skipif("pardiso" not in AVAILABLE,
+                    reason="backend 'pardiso' not installed (pip install critfric[fast])")
+def test_pardiso_analysis_failure_is_raised_in_the_callers_thread(monkeypatch):
+    prep = prepare(loads_case(square_case(element="P1", size=0.25)))
+    K = prep.system.stiffness(*lame(1.0, 0.3), keep_zeros=True)
+    index = np.concatenate([prep.system.cn, prep.system.ct])
+    U = linsolve.upper_triangle(K)
+
+    def fail(self, schur_index):
+        raise SolverError("PARDISO phase 11 failed with error -2 (not enough memory)")
+
+    monkeypatch.setattr(linsolve.PardisoFactor, "_analyse", fail)
+    plan = linsolve.PardisoPlan(U.indptr, U.indices, index)
+    with pytest.raises(SolverError, match="phase 11 failed"):
+        plan.schur(K, index)
+
+
+@pytest.mark.skipif("pardiso" not in AVAILABLE,
+                    reason="backend 'pardiso' not installed (pip install critfric[fast])")
+@pytest.mark.parametrize("element", ["P1", "Q2"])
+def test_solve_case_overlaps_the_analysis_and_gives_the_same_result(element, monkeypatch):
+    """solve_case starts PARDISO's analysis from the pattern (its plan is taken) and reports
+    what solve_prepared without a plan reports."""
+    from critfric.solve import solve_case, solve_prepared
+
+    taken = []
+    original = linsolve.PardisoPlan.schur
+    monkeypatch.setattr(linsolve.PardisoPlan, "schur",
+                        lambda self, A, i: taken.append(original(self, A, i)) or taken[-1])
+    case = load_case(CASES / "inclined_body.toml").with_overrides(
+        {"mesh.element": element, "solve.count": 2})
+    got = solve_case(case)
+    assert len(taken) == 1 and taken[0] is not None
+    ref = solve_prepared(prepare(case), case)
+    np.testing.assert_allclose(got.positive, ref.positive, rtol=1e-11)
+    np.testing.assert_allclose(got.negative, ref.negative, rtol=1e-11)
+    for a, b in zip(got.modes, ref.modes):
+        np.testing.assert_allclose(a["phi"], b["phi"], atol=1e-10)
