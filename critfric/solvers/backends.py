@@ -240,8 +240,11 @@ class SplitSchur:
         items = list(items)
         if self._workers == 1 or len(items) < 2:
             return [fn(h) for h in items]
-        with ThreadPoolExecutor(min(self._workers, len(items))) as pool:
+        pool = ThreadPoolExecutor(min(self._workers, len(items)))
+        try:
             return list(pool.map(fn, items))
+        finally:  # on an error or Ctrl-C, no piece not yet started is factored
+            pool.shutdown(wait=True, cancel_futures=True)
 
     def _factor(self, h: int) -> ScipySchur:
         """Piece h's factorization with its interface last."""

@@ -3,6 +3,8 @@ independent dense formulation, for every contact state (stuck, free and slipping
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 import scipy.linalg as la
@@ -429,3 +431,30 @@ def test_solve_case_overlaps_the_analysis_and_gives_the_same_result(element, mon
     np.testing.assert_allclose(got.negative, ref.negative, rtol=1e-11)
     for a, b in zip(got.modes, ref.modes):
         np.testing.assert_allclose(a["phi"], b["phi"], atol=1e-10)
+
+
+def test_substructuring_stops_at_a_failed_piece(monkeypatch):
+    """A piece that cannot be factored is a SolverError, and the pieces not yet started are
+    not factored (the same holds for Ctrl-C)."""
+    system = prepare(loads_case(square_case(element="P1", size=0.05))).system
+    K = system.stiffness(*lame(1.0, 0.3)).tolil()
+    index = np.concatenate([system.cn, system.ct])
+    monkeypatch.setattr(ordering, "ND_MIN_DOFS", 0)
+    pieces = ordering.pieces(system)
+    first = np.flatnonzero(pieces == 0)
+    first = first[~np.isin(first, index)]
+    K[first, :] = 0.0  # piece 0 singular
+    K[:, first] = 0.0
+    calls = []
+    original = linsolve.SplitSchur._factor
+
+    def factor(self, h):  # the other pieces take a while: piece 0 fails first
+        calls.append(h)
+        if h:
+            time.sleep(0.3)
+        return original(self, h)
+
+    monkeypatch.setattr(linsolve.SplitSchur, "_factor", factor)
+    with pytest.raises(SolverError, match="singular"):
+        linsolve.SplitSchur(K.tocsr(), index, pieces, workers=2)
+    assert sorted(calls)[:2] == [0, 1] and len(calls) <= 3  # at most one piece started after
