@@ -397,11 +397,19 @@ def plan_dense(indptr: np.ndarray, indices: np.ndarray, contact_dofs: np.ndarray
         backend = resolve_backend(backend)
     except SolverError:  # solve() reports it
         return None
-    p = len(contact_dofs) // 2
-    if (backend != "pardiso" or method not in ("auto", "dense") or shift != 0.0
+    p = len(contact_dofs) // 2  # the slipping nodes are not known yet: as if all slipped
+    if (backend != "pardiso" or _method(method, p, shift, p) != "dense"
             or p > SCHUR_MAX_CONTACT or len(contact_dofs) >= len(indptr) - 1):
         return None
     return PardisoPlan(indptr, indices, contact_dofs)
+
+
+def _method(method: str, n_contact: int, shift: float, n_slip: int) -> str:
+    """The method "auto" stands for: every eigenvalue whenever the Schur complement fits."""
+    if method != "auto":
+        return method
+    dense = n_contact <= SCHUR_MAX_CONTACT and shift == 0.0
+    return "dense" if dense or n_slip < 4 else "arpack"
 
 
 def solve(K, system: ContactSystem, state: ContactState | None = None, *, method="auto",
@@ -411,9 +419,7 @@ def solve(K, system: ContactSystem, state: ContactState | None = None, *, method
     ``plan``: :func:`plan_dense` of K's pattern (used if the dense path runs on PARDISO)."""
     state = state or ContactState.all_slipping(system.n_contact, gamma)
     backend = resolve_backend(backend)
-    if method == "auto":  # every eigenvalue whenever the Schur complement fits
-        dense = system.n_contact <= SCHUR_MAX_CONTACT and shift == 0.0
-        method = "dense" if dense or state.n_slip < 4 else "arpack"
+    method = _method(method, system.n_contact, shift, state.n_slip)
     if method == "dense":
         return solve_dense(K, system, state, count=count, real_tol=real_tol, backend=backend,
                            plan=plan)

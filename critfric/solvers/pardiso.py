@@ -196,6 +196,7 @@ class PardisoPlan:
         factor._numeric(U.data)
         return factor
 
+
 _I32 = ctypes.POINTER(ctypes.c_int32)
 
 
