@@ -83,6 +83,14 @@ class Footprint:
         return 1.0 / x
 
 
+def usable_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask where the system has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
 def available_memory() -> float:
     """Bytes this process may still use: MemAvailable, capped by a cgroup limit if any."""
     avail = math.inf

@@ -244,7 +244,7 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
     def start(pattern) -> None:  # the analysis runs while the values are assembled
         s = case.solve
         plan.append(eigen.plan_dense(
-            *free_upper_pattern(pattern.indptr, pattern.indices, layout.fixed),
+            *free_upper_pattern(pattern.indptr, pattern.indices, layout.position),
             layout.contact_dofs, method=s["method"], shift=s["shift"], backend=s["backend"]))
 
     K_lam, K_G = assemble_elasticity(mesh, on_pattern=start if _plan else None)

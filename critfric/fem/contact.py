@@ -9,6 +9,7 @@ Poisson ratio then costs one linear combination ``lam * K_lam + G * K_G``, no re
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -236,15 +237,23 @@ class Layout:
     tangent: np.ndarray
     fixed: np.ndarray
 
-    @property
+    @cached_property
     def free(self) -> np.ndarray:
+        """(m,) global indices of the free DOFs."""
         return np.flatnonzero(~self.fixed)
+
+    @cached_property
+    def position(self) -> np.ndarray:
+        """(2 * n_nodes,) position of each DOF within the free DOFs (-1: Dirichlet)."""
+        position = np.full(len(self.fixed), -1, dtype=np.int64)
+        position[self.free] = np.arange(len(self.free))
+        return position
 
     @property
     def contact_dofs(self) -> np.ndarray:
-        """Positions within the free DOFs of the normal, then the tangential, contact DOFs."""
-        position = np.cumsum(~self.fixed) - 1
-        return np.concatenate([position[2 * self.nodes], position[2 * self.nodes + 1]])
+        """Positions within the free DOFs of the normal, then the tangential, contact DOFs
+        (``cn`` then ``ct`` of the contact system)."""
+        return np.concatenate([self.position[2 * self.nodes], self.position[2 * self.nodes + 1]])
 
 
 def contact_layout(mesh: Mesh, *, contact: list[str], dirichlet: list[str],
@@ -263,17 +272,16 @@ def contact_layout(mesh: Mesh, *, contact: list[str], dirichlet: list[str],
 
 
 def free_upper_pattern(indptr: np.ndarray, indices: np.ndarray,
-                       fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                       position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(indptr, indices) of the upper triangle (diagonal included) of the free-DOF block of a
-    sorted CSR pattern over all DOFs (``fixed``: the Dirichlet mask): the pattern of
+    sorted CSR pattern over all DOFs (``position``: :attr:`Layout.position`): the pattern of
     ``upper_triangle(system.stiffness(lam, G, keep_zeros=True))`` when the parts were
     assembled on that pattern (the n/t rotation changes no entry's place)."""
     n = len(indptr) - 1
     row = np.repeat(np.arange(n, dtype=indices.dtype), np.diff(indptr))
-    free = ~fixed
-    keep = free[row] & free[indices] & (indices >= row)
-    position = (np.cumsum(free) - 1).astype(indices.dtype)
-    ptr = np.zeros(int(free.sum()) + 1, dtype=indptr.dtype)
+    position = position.astype(indices.dtype)
+    keep = (position[row] >= 0) & (position[indices] >= 0) & (indices >= row)
+    ptr = np.zeros(int(np.count_nonzero(position >= 0)) + 1, dtype=indptr.dtype)
     np.cumsum(np.bincount(position[row[keep]], minlength=len(ptr) - 1), out=ptr[1:])
     return ptr, position[indices[keep]]
 
@@ -286,19 +294,16 @@ def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix, *, contact:
     if layout is None:
         layout = contact_layout(mesh, contact=contact, dirichlet=dirichlet, source=source)
     nodes, normal, tangent, fixed = layout.nodes, layout.normal, layout.tangent, layout.fixed
-    free = np.flatnonzero(~fixed)
-    position = np.full(len(fixed), -1, dtype=np.int64)
-    position[free] = np.arange(len(free))
-    fixed_dofs = np.flatnonzero(fixed)
+    position = layout.position
     # K_FF and K_FD (Q is the identity on the Dirichlet DOFs) of Q^T K Q, for each part
     try:  # assembled parts share one sparsity: one pass of index work for both
         groups = [rotated(K_lam, nodes, normal, tangent, K_G)]
     except ValueError:
         groups = [rotated(K, nodes, normal, tangent) for K in (K_lam, K_G)]
     parts, coupling = zip(*(ff_fd for mats in groups for ff_fd in _split_free(mats, fixed)))
-    return ContactSystem(mesh=mesh, free=free, nodes=nodes, normal=normal, tangent=tangent,
-                         cn=position[2 * nodes], ct=position[2 * nodes + 1],
-                         K_lam=parts[0], K_G=parts[1], fixed=fixed_dofs,
+    return ContactSystem(mesh=mesh, free=layout.free, nodes=nodes, normal=normal,
+                         tangent=tangent, cn=position[2 * nodes], ct=position[2 * nodes + 1],
+                         K_lam=parts[0], K_G=parts[1], fixed=np.flatnonzero(fixed),
                          D_lam=coupling[0], D_G=coupling[1])
 
 

@@ -64,14 +64,14 @@ class PardisoFactor:
     backend = "pardiso"
 
     def __init__(self, A: sp.spmatrix, *, symmetric: bool, schur_index=None):
-        if symmetric and not np.all(A.diagonal() > 0):
-            raise SolverError(f"the matrix has a non-positive diagonal entry: {SINGULAR}")
+        if symmetric:
+            _check_diagonal(A)
         A = upper_triangle(A) if symmetric else sp.csr_matrix(A)
         A.sort_indices()
         self._setup(A.indptr, A.indices, symmetric=symmetric)
-        self._a[:] = A.data  # mtype 11's analysis scales and matches on the values
+        self._a[:] = A.data  # before the analysis: mtype 11's scales and matches on them
         self._analyse(schur_index)
-        self._numeric(A.data)
+        self._numeric()
 
     def _setup(self, indptr, indices, *, symmetric: bool) -> None:
         """The pattern (sorted CSR; the upper triangle if ``symmetric``) and PARDISO's state."""
@@ -107,10 +107,12 @@ class PardisoFactor:
             self._iparm[35] = 2  # Schur complement, keep the interior factors for phase 333
         self._call(11, 1, np.zeros(n), np.zeros(n))
 
-    def _numeric(self, values: np.ndarray) -> None:
-        """Phase 22 on ``values`` (the entries of the analysed pattern); ``S`` with Schur rows."""
+    def _numeric(self, values: np.ndarray | None = None) -> None:
+        """Phase 22 on ``values`` (the entries of the analysed pattern; default: the ones
+        given before); ``S`` with Schur rows."""
         n = self.shape[0]
-        self._a[:] = values
+        if values is not None:
+            self._a[:] = values
         if self._index is None:
             self._call(22, 1, np.zeros(n), np.zeros(n))
             return
@@ -188,8 +190,7 @@ class PardisoPlan:
         if not (np.array_equal(U.indptr, factor._ia) and np.array_equal(U.indices, factor._ja)
                 and np.array_equal(np.asarray(index), self._index)):
             return None
-        if not np.all(A.diagonal() > 0):
-            raise SolverError(f"the matrix has a non-positive diagonal entry: {SINGULAR}")
+        _check_diagonal(A)
         self._thread.join()
         if self._error is not None:
             raise self._error
@@ -198,6 +199,12 @@ class PardisoPlan:
 
 
 _I32 = ctypes.POINTER(ctypes.c_int32)
+
+
+def _check_diagonal(A: sp.spmatrix) -> None:
+    """A positive definite matrix has a positive diagonal (mtype 2 would not say why)."""
+    if not np.all(A.diagonal() > 0):
+        raise SolverError(f"the matrix has a non-positive diagonal entry: {SINGULAR}")
 
 
 def upper_triangle(A: sp.spmatrix) -> sp.csr_matrix:

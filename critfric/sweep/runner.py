@@ -14,7 +14,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
 import threading
 import time
 from collections import OrderedDict
@@ -25,6 +24,7 @@ from pathlib import Path
 from ..case.schema import Case, from_dict
 from ..errors import CaseError
 from ..files import sweepfile
+from ..guards import usable_cpus
 from ..solve import Prepared, preflight, prepare, singular_of, solve_prepared
 from ..stability import stability_prepared
 from . import workers
@@ -183,13 +183,6 @@ def _json_value(v):
     return v
 
 
-def default_jobs() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
 def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = None,
               scheduler: str | None = None, force: bool = False, reuse: bool = True,
               on_point: Callable[[dict, int, int], None] | None = None,
@@ -218,7 +211,7 @@ def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = 
             on_point(None, finished, len(points))
         spec = worker_spec(case, reuse=reuse, max_dofs=max_dofs, trust_geo=trust_geo,
                            quantity=grid.quantity)
-        jobs = max(1, min(jobs or default_jobs(), len(todo)))
+        jobs = max(1, min(jobs or usable_cpus(), len(todo)))
         if not todo:
             stream = iter(())
         elif client is not None:
