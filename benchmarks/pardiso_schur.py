@@ -113,7 +113,8 @@ class Pardiso:
         import scipy.sparse as sp
         sys.path.insert(0, str(ROOT))
         from critfric.solvers.pardiso import pardiso_library
-        self.fn, init = pardiso_library()
+        lib = pardiso_library()
+        self.fn, init = lib.pardiso, lib.init
         A = sp.triu(K, format="csr")
         A.sort_indices()
         self.n = n = A.shape[0]

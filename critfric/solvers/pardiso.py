@@ -7,12 +7,14 @@ started from the pattern alone, in a thread, while the values are still being co
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import functools
 import importlib.metadata
 import importlib.util
 import threading
 import weakref
+from typing import Callable, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -23,9 +25,19 @@ SINGULAR = ("the stiffness matrix is singular. Check that the Dirichlet edges ho
             "(no rigid motion left).")
 
 
+class Library(NamedTuple):
+    """MKL's entry points: PARDISO, and the thread counts every phase of a factor is pinned
+    to (:meth:`PardisoFactor._call`)."""
+
+    pardiso: Callable
+    init: Callable
+    max_threads: Callable  # MKL_Get_Max_Threads(): the calling thread's count
+    set_local_threads: Callable  # MKL_Set_Num_Threads_Local(n): the previous local count
+
+
 @functools.cache
-def pardiso_library():
-    """MKL's ``pardiso`` entry point (None if absent): mkl_rt from the ``mkl`` wheel's file
+def pardiso_library() -> Library | None:
+    """MKL's ``pardiso`` entry points (None if absent): mkl_rt from the ``mkl`` wheel's file
     list (fast), else found the way pypardiso finds it (importing it searches directories)."""
     if importlib.util.find_spec("pypardiso") is None:
         return None
@@ -38,6 +50,13 @@ def pardiso_library():
             lib = pypardiso.PyPardisoSolver().libmkl
         except (ImportError, OSError, AttributeError):
             return None
+    try:
+        return _entry_points(lib)
+    except AttributeError:  # not an MKL of this interface: the backend is missing
+        return None
+
+
+def _entry_points(lib: ctypes.CDLL) -> Library:
     p, i32 = ctypes.c_void_p, ctypes.POINTER(ctypes.c_int32)
     fn = lib.pardiso
     fn.argtypes = [p, i32, i32, i32, i32, i32, p, i32, i32, i32, i32, i32, i32, p, p, i32]
@@ -45,7 +64,11 @@ def pardiso_library():
     init = lib.pardisoinit
     init.argtypes = [p, i32, i32]
     init.restype = None
-    return fn, init
+    threads = lib.MKL_Get_Max_Threads
+    threads.argtypes, threads.restype = [], ctypes.c_int
+    local = lib.MKL_Set_Num_Threads_Local
+    local.argtypes, local.restype = [ctypes.c_int], ctypes.c_int
+    return Library(fn, init, threads, local)
 
 
 _PARDISO_ERRORS = {-1: "input inconsistent", -2: "not enough memory",
@@ -73,10 +96,15 @@ class PardisoFactor:
         self._analyse(schur_index)
         self._numeric()
 
-    def _setup(self, indptr, indices, *, symmetric: bool) -> None:
-        """The pattern (sorted CSR; the upper triangle if ``symmetric``) and PARDISO's state."""
-        fn, init = pardiso_library()
-        self._fn, n = fn, len(indptr) - 1
+    def _setup(self, indptr, indices, *, symmetric: bool, threads: int | None = None) -> None:
+        """The pattern (sorted CSR; the upper triangle if ``symmetric``) and PARDISO's state;
+        ``threads``: MKL threads of every phase (default: this thread's count now)."""
+        lib = pardiso_library()
+        self._lib, n = lib, len(indptr) - 1
+        # every phase runs with the thread count of the thread that made the factor: phase 22
+        # or 33 with another count than phase 11 gave a wrong Schur complement or a segfault
+        # (an analysis in a plan's thread, then threadpool_limits(1) in the caller's)
+        self._threads = threads if threads is not None else lib.max_threads()
         if len(indices) >= 2**31:
             raise SolverError(f"{len(indices)} nonzeros is too many for PARDISO's 32-bit "
                               "interface; use backend = 'scipy'")
@@ -87,14 +115,14 @@ class PardisoFactor:
         self.shape = (n, n)
         self._pt = np.zeros(64, dtype=np.int64)
         self._iparm = np.zeros(64, dtype=np.int32)
-        init(self._pt.ctypes.data, _int(self.mtype), self._iparm.ctypes.data_as(_I32))
+        lib.init(self._pt.ctypes.data, _int(self.mtype), self._iparm.ctypes.data_as(_I32))
         self._iparm[0] = 1   # iparm given
         self._iparm[1] = 2   # METIS nested dissection
         self._iparm[7] = 0   # no iterative refinement beyond what perturbed pivots ask for
         self._iparm[34] = 1  # zero-based indices
         self._perm = np.zeros(n, dtype=np.int32)
         self._index = None
-        weakref.finalize(self, _pardiso_release, fn, self._pt, self.mtype, n)
+        weakref.finalize(self, _pardiso_release, lib, self._pt, self.mtype, n, self._threads)
 
     def _analyse(self, schur_index) -> None:
         """Phase 11 (ordering, symbolic factorization; for mtype 2 from the pattern alone, for
@@ -127,12 +155,13 @@ class PardisoFactor:
 
     def _call(self, phase: int, nrhs: int, b: np.ndarray, x: np.ndarray) -> None:
         err = ctypes.c_int32(0)
-        with _MKL_LOCK:
-            self._fn(self._pt.ctypes.data, _int(1), _int(1), _int(self.mtype), _int(phase),
-                     _int(self.shape[0]), self._a.ctypes.data, self._ia.ctypes.data_as(_I32),
-                     self._ja.ctypes.data_as(_I32), self._perm.ctypes.data_as(_I32),
-                     _int(nrhs), self._iparm.ctypes.data_as(_I32), _int(0), b.ctypes.data,
-                     x.ctypes.data, ctypes.byref(err))
+        with _MKL_LOCK, _pinned(self._lib, self._threads):
+            self._lib.pardiso(self._pt.ctypes.data, _int(1), _int(1), _int(self.mtype),
+                              _int(phase), _int(self.shape[0]), self._a.ctypes.data,
+                              self._ia.ctypes.data_as(_I32), self._ja.ctypes.data_as(_I32),
+                              self._perm.ctypes.data_as(_I32), _int(nrhs),
+                              self._iparm.ctypes.data_as(_I32), _int(0), b.ctypes.data,
+                              x.ctypes.data, ctypes.byref(err))
         if err.value != 0:
             what = _PARDISO_ERRORS.get(err.value, "see the MKL PARDISO error codes")
             raise SolverError(f"PARDISO phase {phase} failed with error {err.value} ({what}); "
@@ -168,7 +197,7 @@ class PardisoPlan:
 
     def __init__(self, indptr: np.ndarray, indices: np.ndarray, index: np.ndarray):
         self._factor = PardisoFactor.__new__(PardisoFactor)
-        self._factor._setup(indptr, indices, symmetric=True)
+        self._factor._setup(indptr, indices, symmetric=True)  # the caller's thread count
         self._index, self._error = np.asarray(index, dtype=np.int64), None
         self._thread = threading.Thread(target=self._run, args=(self._factor,),
                                         name="critfric-pardiso-analysis", daemon=True)
@@ -234,12 +263,23 @@ def _int(value: int):
 _MKL_LOCK = threading.RLock()
 
 
-def _pardiso_release(fn, pt, mtype, n) -> None:
+def _pardiso_release(lib: Library, pt, mtype, n, threads) -> None:
     """Phase -1 on ``pt``, with arrays of the sizes PARDISO's interface declares."""
     zero, index = np.zeros(n), np.zeros(n + 1, dtype=np.int32)
     iparm = np.zeros(64, dtype=np.int32)
-    with _MKL_LOCK:
-        fn(pt.ctypes.data, _int(1), _int(1), _int(mtype), _int(-1), _int(n), zero.ctypes.data,
-           index.ctypes.data_as(_I32), index.ctypes.data_as(_I32), index.ctypes.data_as(_I32),
-           _int(1), iparm.ctypes.data_as(_I32), _int(0), zero.ctypes.data, zero.ctypes.data,
-           ctypes.byref(ctypes.c_int32(0)))
+    with _MKL_LOCK, _pinned(lib, threads):
+        lib.pardiso(pt.ctypes.data, _int(1), _int(1), _int(mtype), _int(-1), _int(n),
+                    zero.ctypes.data, index.ctypes.data_as(_I32), index.ctypes.data_as(_I32),
+                    index.ctypes.data_as(_I32), _int(1), iparm.ctypes.data_as(_I32), _int(0),
+                    zero.ctypes.data, zero.ctypes.data, ctypes.byref(ctypes.c_int32(0)))
+
+
+@contextlib.contextmanager
+def _pinned(lib: Library, threads: int):
+    """MKL's thread count of the calling thread set to ``threads`` (a thread-local setting,
+    above threadpoolctl's global one), then put back."""
+    previous = lib.set_local_threads(threads)
+    try:
+        yield
+    finally:
+        lib.set_local_threads(previous)  # 0: no local setting, as before

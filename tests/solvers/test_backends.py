@@ -433,6 +433,33 @@ def test_solve_case_overlaps_the_analysis_and_gives_the_same_result(element, mon
         np.testing.assert_allclose(a["phi"], b["phi"], atol=1e-10)
 
 
+@pytest.mark.skipif("pardiso" not in AVAILABLE,
+                    reason="backend 'pardiso' not installed (pip install critfric[fast])")
+def test_pardiso_phases_keep_one_thread_count_whatever_the_caller_sets():
+    """A plan's analysis runs in its own thread, and callers change MKL's threads between
+    calls (threadpoolctl, as sweeps run in-process do). Phase 22 with another count than
+    phase 11 gave a Schur complement off by 100% (P1 at 3 856 DOFs) or a segfault (Q2)."""
+    from threadpoolctl import threadpool_limits
+
+    from critfric.solve import solve_case
+
+    case = loads_case(square_case(element="P1", size=0.025))
+    ref = solve_case(case)
+    with threadpool_limits(limits=1):
+        limited = solve_case(case)
+        K = prepare(case).system.stiffness(*lame(1.0, 0.3))
+        index = np.arange(0, K.shape[0], 7)
+        factor = linsolve.PardisoFactor(K, symmetric=True, schur_index=index)
+    np.testing.assert_allclose(limited.positive, ref.positive, rtol=1e-11)
+    np.testing.assert_allclose(limited.negative, ref.negative, rtol=1e-11)
+    whole = linsolve.PardisoFactor(K, symmetric=True, schur_index=index)
+    np.testing.assert_allclose(factor.S, whole.S, rtol=0, atol=1e-12 * np.abs(whole.S).max())
+    xc = np.random.default_rng(2).standard_normal((len(index), 3))
+    with threadpool_limits(limits=1):  # made with the default count, solved with one
+        np.testing.assert_allclose(whole.extend(xc), factor.extend(xc), rtol=0,
+                                   atol=1e-11 * np.abs(factor.extend(xc)).max())
+
+
 def test_substructuring_stops_at_a_failed_piece(monkeypatch):
     """A piece that cannot be factored is a SolverError, and the pieces not yet started are
     not factored (the same holds for Ctrl-C)."""
