@@ -2,7 +2,7 @@
 sweeps on graded meshes against known values, per case and element.
 
 Every case is swept at nu = 0.3 over five sizes with P1, P2, Q1 and Q2 on meshes graded at
-every singular point (the sweep default, size 0.1 h there); the table gives each family's
+every singular point (the sweep default, size 0.05 h there); the table gives each family's
 limit, error estimate and observed order next to the reference. Exit status 1 if a limit
 called converged misses its reference by more than its error estimate, or a closed form fails.
 

@@ -14,7 +14,14 @@ from typing import Annotated
 import typer
 
 from .._version import __version__
-from ..case.schema import BACKENDS, METHODS, OVERRIDES, load_case, shipped_cases
+from ..case.schema import (
+    BACKENDS,
+    METHODS,
+    OVERRIDES,
+    SWEEP_GRADING,
+    load_case,
+    shipped_cases,
+)
 from ..errors import CaseError
 from ..fem.elements import NAMES
 from ..files.results import default_output, write_result
@@ -269,8 +276,8 @@ def sweep(
                                             "point (contact ends, state junctions, corners "
                                             "where the condition changes, re-entrant "
                                             "corners): size g*h there, g in (0, 1]; 1: "
-                                            "uniform [default: 0.1 with three sizes or "
-                                            "more, else the case's]."),
+                                            f"uniform [default: {SWEEP_GRADING:g} with three "
+                                            "sizes or more, else the case's]."),
     count: int | None = typer.Option(None, help="Lowest coefficients stored per family."),
     quantity: str = typer.Option("critical", help="What each point computes: critical (the "
                                  "static coefficients of `solve`) or flutter (the flutter "

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..case.schema import Case, from_dict
+from ..case.schema import SWEEP_GRADING, Case, from_dict
 from ..errors import CaseError
 from ..files import sweepfile
 from ..guards import usable_cpus
@@ -41,8 +41,6 @@ from .grid import (
 )
 
 CACHE_SIZE = 2  # prepared systems kept per worker process
-#: [mesh] grading of a sweep that extrapolates (3+ sizes) when the case sets none
-SWEEP_GRADING = 0.1
 
 
 def sweep_case(case: Case, sizes) -> tuple[Case, str | None]:

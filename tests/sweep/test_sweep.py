@@ -273,11 +273,12 @@ def test_elements_that_disagree_are_not_converged():
 
 
 def test_unit_square_limits_of_p1_and_p2_match_a_much_finer_solve(tmp_path):
-    """Done-when check at CI sizes: nu = 0.3, four sizes each on the sweeps' default graded
-    meshes; the reference 1.94471145 is from radially graded P2 and Q2 (make validate)."""
+    """Done-when check at CI sizes: nu = 0.3, four sizes of P1 and three of P2 (at 0.2, P2 is
+    not yet asymptotic on the default grading) on the sweeps' default graded meshes; the
+    reference 1.94471145 is from radially graded P2 and Q2 (make validate)."""
     case = critfric.load_case("unit-square")
     limits = {}
-    for element, sizes in (("P1", "0.1,0.05,0.025,0.0125"), ("P2", "0.2,0.1,0.05,0.025")):
+    for element, sizes in (("P1", "0.1,0.05,0.025,0.0125"), ("P2", "0.1,0.05,0.025")):
         grid = make_grid(case, nu="0.3", size=sizes, element=element)
         sweep = run_sweep(case, grid, output=tmp_path / f"{element}.h5", jobs=1)
         for lim in sweep.limits:
