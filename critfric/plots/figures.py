@@ -128,7 +128,7 @@ def _critical_vs_nu(rows, limits, title) -> Figure:
             if any(lim["status"] == "ok" for lim in lims):  # NaN (a gap) where not converged
                 ax.plot([lim["nu"] for lim in lims], [sign * lim["limit"] for lim in lims],
                         ls="--", lw=2, marker="*", ms=8, color=color,
-                        label=f"{el}, h → 0 (Richardson)")
+                        label=f"{el}, h → 0 limit")
         bad = [lim for lim in limits if lim["family"] == family and lim["status"] != "ok"]
         notes = [f"{len(bad)} (ν, element) famil{'y' if len(bad) == 1 else 'ies'} not "
                  "converged: no limit drawn"] if bad else []

@@ -280,8 +280,8 @@ def report_sweep(sweep: Sweep) -> str:
         lines.append("h -> 0 limits: need at least three sizes (--size h1,h2,h3)")
         return "\n".join(lines)
     lines.append("")
-    lines.append("h -> 0 limits (Richardson extrapolation of the three finest sizes, "
-                 "observed order p)")
+    lines.append("h -> 0 limits (a fit f0 + C h^p to the four finest sizes, Richardson's "
+                 "extrapolation with three; observed order p; - where not extrapolated)")
     head = f"{'nu':>7} {'element':<7} {'family':<8} {'limit':>14} {'error':>9} {'p':>5}  status"
     lines += [head, "-" * len(head)]
     for lim in sweep.limits:

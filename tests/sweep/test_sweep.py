@@ -239,6 +239,11 @@ def test_noisy_families_that_converge_keep_a_limit_with_an_honest_error():
     limit, order, error, status = family_limit(h, [1.945276, 1.944490, 1.944775, 1.944739],
                                                "P1")
     assert status == "ok" and abs(limit - 1.9447114) <= error < 2e-3
+    # measured P1 negative family of a slip | free | slip base (graded 0.05): a step back,
+    # then steps forward; P2 and Q2 converge to 1.81295 (order ~1)
+    limit, order, error, status = family_limit(h, [1.812848, 1.812808, 1.812836, 1.812880],
+                                               "P1")
+    assert status == "ok" and math.isnan(order) and abs(limit - 1.81295) <= error < 3e-4
     # measured inclined-body P2 values (graded 0.1): the old estimate missed the reference
     f = [0.585033730, 0.585022737, 0.585019227, 0.585018007]
     limit, order, error, status = family_limit(h, f, "P2")
