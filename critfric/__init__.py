@@ -5,15 +5,15 @@ The pipeline, one subpackage a stage (imports only run downwards)::
 
     case -> meshing -> fem -> solvers -> solve -> multiplicity -> files -> sweep -> plots -> cli
 
-The names below are imported on first use, so that ``import critfric`` (and the start of the
-command line) stays light.
+The names below, ``__version__`` included, are imported on first use, so that ``import
+critfric`` (and the start of the command line, where a Ctrl-C must find critfric's handler)
+stays light.
 """
 
 from importlib import import_module
 
-from ._version import __version__
-
 _API = {
+    "__version__": "_version",
     "Case": "case", "load_case": "case", "loads_case": "case", "shipped_cases": "case",
     "CaseError": "errors", "CritfricError": "errors", "SolverError": "errors",
     "WriteError": "errors", "read_summary": "files", "write_result": "files",
