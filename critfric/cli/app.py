@@ -295,7 +295,7 @@ def sweep(
     max_dofs: MaxDofs = None,
     trust_geo: TrustGeo = False,
 ) -> None:
-    """Sweep nu, mesh size and element; resumable; h -> 0 limits by Richardson extrapolation."""
+    """Sweep nu, mesh size and element; resumable; h -> 0 limits with error estimates."""
     with reported("every finished point is kept in the sweep file; run the same command "
                   "again to compute only the rest"):
         from ..plots.figures import plot_file
