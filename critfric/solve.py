@@ -19,10 +19,10 @@ import numpy as np
 from .case.schema import Case, from_dict, load_case
 from .errors import CaseError
 from .fem.assembly import assemble_elasticity, lame
-from .fem.contact import (ContactSystem, check_held, contact_layout, contact_system,
-                          free_upper_pattern)
+from .fem.contact import ContactSystem, check_held, contact_layout, contact_system
 from .fem.elements import get_element
 from .fem.mesh import Mesh
+from .fem.pattern import upper_pattern
 from .guards import check_dofs, polygon_footprint
 from .meshing.geometry import parallelogram, polygon, rectangle, validate
 from .meshing.gmshfile import check_file, file_mesh
@@ -242,10 +242,11 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
     plan = []
 
     def start(pattern) -> None:  # the analysis runs while the values are assembled
+        # K's pattern: the free block's upper triangle (the n/t rotation moves no entry)
+        ptr, col, _ = upper_pattern(pattern.indptr, pattern.indices, layout.position)
         s = case.solve
-        plan.append(eigen.plan_dense(
-            *free_upper_pattern(pattern.indptr, pattern.indices, layout.position),
-            layout.contact_dofs, method=s["method"], shift=s["shift"], backend=s["backend"]))
+        plan.append(eigen.plan_dense(ptr, col, layout.contact_dofs, method=s["method"],
+                                     shift=s["shift"], backend=s["backend"]))
 
     K_lam, K_G = assemble_elasticity(mesh, on_pattern=start if _plan else None)
     t3 = time.perf_counter()

@@ -271,21 +271,6 @@ def contact_layout(mesh: Mesh, *, contact: list[str], dirichlet: list[str],
     return Layout(nodes, normal, tangent, fixed)
 
 
-def free_upper_pattern(indptr: np.ndarray, indices: np.ndarray,
-                       position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(indptr, indices) of the upper triangle (diagonal included) of the free-DOF block of a
-    sorted CSR pattern over all DOFs (``position``: :attr:`Layout.position`): the pattern of
-    ``upper_triangle(system.stiffness(lam, G, keep_zeros=True))`` when the parts were
-    assembled on that pattern (the n/t rotation changes no entry's place)."""
-    n = len(indptr) - 1
-    row = np.repeat(np.arange(n, dtype=indices.dtype), np.diff(indptr))
-    position = position.astype(indices.dtype)
-    keep = (position[row] >= 0) & (position[indices] >= 0) & (indices >= row)
-    ptr = np.zeros(int(np.count_nonzero(position >= 0)) + 1, dtype=indptr.dtype)
-    np.cumsum(np.bincount(position[row[keep]], minlength=len(ptr) - 1), out=ptr[1:])
-    return ptr, position[indices[keep]]
-
-
 def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix, *, contact: list[str],
                    dirichlet: list[str], source: str = "",
                    layout: Layout | None = None) -> ContactSystem:

@@ -84,3 +84,24 @@ class BlockPattern:
         A = sp.csr_matrix((data, self.indices.copy(), self.indptr.copy()), shape=(n, n))
         A.has_sorted_indices = True
         return A
+
+
+def upper_pattern(indptr: np.ndarray, indices: np.ndarray, position: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The upper triangle (diagonal included) of a sorted CSR pattern: its ``(indptr,
+    indices)`` and the mask of the entries kept (for the values: ``data[keep]``). With
+    ``position`` (each row's and column's new index, -1 to drop it, increasing where kept),
+    restricted to the rows and columns kept and renumbered: e.g. the free-DOF block."""
+    n = len(indptr) - 1
+    row = np.repeat(np.arange(n, dtype=indices.dtype), np.diff(indptr))
+    keep = indices >= row
+    if position is None:
+        m, new_row, new_col = n, row, indices
+    else:
+        position = np.asarray(position).astype(indices.dtype)
+        new_row, new_col = position[row], position[indices]
+        keep &= (new_row >= 0) & (new_col >= 0)
+        m = int(np.count_nonzero(position >= 0))
+    ptr = np.zeros(m + 1, dtype=indptr.dtype)
+    np.cumsum(np.bincount(new_row[keep], minlength=m), out=ptr[1:])
+    return ptr, new_col[keep], keep

@@ -20,6 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import SolverError
+from ..fem.pattern import upper_pattern
 
 SINGULAR = ("the stiffness matrix is singular. Check that the Dirichlet edges hold the body "
             "(no rigid motion left).")
@@ -96,15 +97,15 @@ class PardisoFactor:
         self._analyse(schur_index)
         self._numeric()
 
-    def _setup(self, indptr, indices, *, symmetric: bool, threads: int | None = None) -> None:
-        """The pattern (sorted CSR; the upper triangle if ``symmetric``) and PARDISO's state;
-        ``threads``: MKL threads of every phase (default: this thread's count now)."""
+    def _setup(self, indptr, indices, *, symmetric: bool) -> None:
+        """The pattern (sorted CSR; the upper triangle if ``symmetric``) and PARDISO's state,
+        every phase to run with this thread's MKL thread count."""
         lib = pardiso_library()
         self._lib, n = lib, len(indptr) - 1
         # every phase runs with the thread count of the thread that made the factor: phase 22
         # or 33 with another count than phase 11 gave a wrong Schur complement or a segfault
         # (an analysis in a plan's thread, then threadpool_limits(1) in the caller's)
-        self._threads = threads if threads is not None else lib.max_threads()
+        self._threads = lib.max_threads()
         if len(indices) >= 2**31:
             raise SolverError(f"{len(indices)} nonzeros is too many for PARDISO's 32-bit "
                               "interface; use backend = 'scipy'")
@@ -152,19 +153,12 @@ class PardisoFactor:
         S = buf[:ns * ns].reshape(ns, ns)[np.ix_(pos, pos)]
         self.S = 0.5 * (S + S.T)
 
-
     def _call(self, phase: int, nrhs: int, b: np.ndarray, x: np.ndarray) -> None:
-        err = ctypes.c_int32(0)
-        with _MKL_LOCK, _pinned(self._lib, self._threads):
-            self._lib.pardiso(self._pt.ctypes.data, _int(1), _int(1), _int(self.mtype),
-                              _int(phase), _int(self.shape[0]), self._a.ctypes.data,
-                              self._ia.ctypes.data_as(_I32), self._ja.ctypes.data_as(_I32),
-                              self._perm.ctypes.data_as(_I32), _int(nrhs),
-                              self._iparm.ctypes.data_as(_I32), _int(0), b.ctypes.data,
-                              x.ctypes.data, ctypes.byref(err))
-        if err.value != 0:
-            what = _PARDISO_ERRORS.get(err.value, "see the MKL PARDISO error codes")
-            raise SolverError(f"PARDISO phase {phase} failed with error {err.value} ({what}); "
+        err = _run_phase(self._lib, self._threads, self._pt, self.mtype, phase, self._a,
+                         self._ia, self._ja, self._perm, nrhs, self._iparm, b, x)
+        if err != 0:
+            what = _PARDISO_ERRORS.get(err, "see the MKL PARDISO error codes")
+            raise SolverError(f"PARDISO phase {phase} failed with error {err} ({what}); "
                               "try backend = 'scipy'")
 
     def solve(self, b: np.ndarray, *, transpose: bool = False) -> np.ndarray:
@@ -242,12 +236,8 @@ def upper_triangle(A: sp.spmatrix) -> sp.csr_matrix:
     A = sp.csr_matrix(A)
     if not A.has_sorted_indices:
         A = A.sorted_indices()
-    n = A.shape[0]
-    row = np.repeat(np.arange(n, dtype=A.indices.dtype), np.diff(A.indptr))
-    keep = A.indices >= row
-    ptr = np.zeros(n + 1, dtype=A.indptr.dtype)
-    np.cumsum(np.bincount(row[keep], minlength=n), out=ptr[1:])
-    U = sp.csr_matrix((A.data[keep], A.indices[keep], ptr), shape=A.shape)
+    ptr, col, keep = upper_pattern(A.indptr, A.indices)
+    U = sp.csr_matrix((A.data[keep], col, ptr), shape=A.shape)
     U.has_sorted_indices = True
     return U
 
@@ -263,15 +253,24 @@ def _int(value: int):
 _MKL_LOCK = threading.RLock()
 
 
+def _run_phase(lib: Library, threads: int, pt, mtype: int, phase: int, a, ia, ja, perm,
+               nrhs: int, iparm, b, x) -> int:
+    """One PARDISO call (under the lock, with ``threads`` MKL threads); its error code."""
+    err = ctypes.c_int32(0)
+    with _MKL_LOCK, _pinned(lib, threads):
+        lib.pardiso(pt.ctypes.data, _int(1), _int(1), _int(mtype), _int(phase),
+                    _int(len(ia) - 1), a.ctypes.data, ia.ctypes.data_as(_I32),
+                    ja.ctypes.data_as(_I32), perm.ctypes.data_as(_I32), _int(nrhs),
+                    iparm.ctypes.data_as(_I32), _int(0), b.ctypes.data, x.ctypes.data,
+                    ctypes.byref(err))
+    return err.value
+
+
 def _pardiso_release(lib: Library, pt, mtype, n, threads) -> None:
     """Phase -1 on ``pt``, with arrays of the sizes PARDISO's interface declares."""
     zero, index = np.zeros(n), np.zeros(n + 1, dtype=np.int32)
-    iparm = np.zeros(64, dtype=np.int32)
-    with _MKL_LOCK, _pinned(lib, threads):
-        lib.pardiso(pt.ctypes.data, _int(1), _int(1), _int(mtype), _int(-1), _int(n),
-                    zero.ctypes.data, index.ctypes.data_as(_I32), index.ctypes.data_as(_I32),
-                    index.ctypes.data_as(_I32), _int(1), iparm.ctypes.data_as(_I32), _int(0),
-                    zero.ctypes.data, zero.ctypes.data, ctypes.byref(ctypes.c_int32(0)))
+    _run_phase(lib, threads, pt, mtype, -1, zero, index, index, index, 1,
+               np.zeros(64, dtype=np.int32), zero, zero)
 
 
 @contextlib.contextmanager

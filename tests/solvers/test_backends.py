@@ -335,11 +335,12 @@ def test_substructured_schur_equals_one_factorization(element, monkeypatch):
 
 @pytest.mark.parametrize("element", ["P1", "Q1", "P2", "Q2"])
 def test_stiffness_pattern_is_known_before_its_values(element):
-    """free_upper_pattern (from the mesh's DOF pattern and the Dirichlet mask alone) is the
+    """upper_pattern (of the mesh's DOF pattern, restricted by the Dirichlet mask alone) is the
     pattern of the upper triangle of the free stiffness with its zeros kept, and the layout's
     contact DOFs are the system's [cn, ct]; contact_system with the layout given is the same."""
     from critfric.fem.assembly import assemble_elasticity
-    from critfric.fem.contact import contact_layout, contact_system, free_upper_pattern
+    from critfric.fem.contact import contact_layout, contact_system
+    from critfric.fem.pattern import upper_pattern
 
     case = loads_case(square_case(element=element, size=0.2))
     mesh = prepare(case).mesh
@@ -347,7 +348,7 @@ def test_stiffness_pattern_is_known_before_its_values(element):
     layout = contact_layout(mesh, **bc)
     seen = []
     K_lam, K_G = assemble_elasticity(mesh, on_pattern=seen.append)
-    ptr, col = free_upper_pattern(seen[0].indptr, seen[0].indices, layout.position)
+    ptr, col, _ = upper_pattern(seen[0].indptr, seen[0].indices, layout.position)
     given, own = contact_system(mesh, K_lam, K_G, layout=layout, **bc), contact_system(
         mesh, K_lam, K_G, **bc)
     for a, b in ((given.K_lam, own.K_lam), (given.K_G, own.K_G), (given.D_G, own.D_G)):
