@@ -25,6 +25,15 @@ class Bad(ValueError):
     """Raised by a check: the text says what is allowed."""
 
 
+class BadEntry(Bad):
+    """Raised by the check of a table for one of its entries: ``key`` names the entry and
+    ``value`` is what the message shows as given."""
+
+    def __init__(self, allowed: str, key: str, value):
+        super().__init__(allowed)
+        self.key, self.value = key, value
+
+
 def number(lo=-math.inf, hi=math.inf, *, lo_open=False, hi_open=False):
     def check(value):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -151,6 +160,13 @@ def friction_range(value):
     return [a, b]
 
 
+def interval(value):
+    if not (isinstance(value, list) and len(value) == 2 and all(finite(v) for v in value)
+            and value[0] < value[1]):
+        raise Bad("two numbers [a, b] with a < b (finite)")
+    return [float(v) for v in value]
+
+
 def finite(c) -> bool:
     return isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
 
@@ -242,3 +258,24 @@ def contact_rules(value):
         except Bad as bad:
             raise Bad(f"rule {i}: {bad}") from None
     return out
+
+
+def subtable(checks: dict, what: str):
+    """A non-empty table with some of the keys of ``checks``, each value checked by its check;
+    returned with every key (None where absent). ``what``: the keys' meaning, for messages."""
+    allowed = ", ".join(checks)
+
+    def check(value):
+        if not isinstance(value, dict) or not value:
+            raise Bad(f"a table with one or more of {allowed} ({what})")
+        out = dict.fromkeys(checks)
+        for key, entry in value.items():
+            if key not in checks:
+                raise BadEntry(f"only the keys {allowed} ({what})", str(key), {key: entry})
+            try:
+                out[key] = checks[key](entry)
+            except Bad as bad:
+                raise BadEntry(str(bad), str(key), entry) from None
+        return out
+
+    return check

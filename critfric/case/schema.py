@@ -1,9 +1,9 @@
 """Case files: the TOML schema, strict validation, overrides and the shipped cases.
 
 A case is a TOML file with the sections ``[geometry]``, ``[boundary]``, ``[material]``,
-``[mesh]``, ``[solve]`` and ``[output]`` (see ``SCHEMA`` and the README). Validation is
-strict: an unknown key, a wrong type or an out-of-range value is a :class:`CaseError` that
-names the file, the dotted key, the value and what is allowed.
+``[mesh]``, ``[solve]``, ``[output]`` and those of single commands (see ``SCHEMA`` and the
+README). Validation is strict: an unknown key, a wrong type or an out-of-range value is a
+:class:`CaseError` that names the file, the dotted key, the value and what is allowed.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from typing import Any
 import tomli_w
 
 from ..case import checks as c
+from ..case.pathkeys import LOAD_KEYS, PARAMETERS, STARTS, check_loads
 from ..errors import CaseError
 from ..fem.elements import ELEMENTS, NAMES
 
@@ -34,6 +35,19 @@ POSITIVE = c.number(0.0, lo_open=True)
 #: singular points' share of the h -> 0 error shrinks with g (README "Validation": from 0.1
 #: to 0.05, 18% more DOFs, inclined-body Q1 limits 2.1e-6 -> 9.0e-7 off the reference)
 SWEEP_GRADING = 0.05
+
+LOAD = {
+    "friction": c.Key(c.number(0.0), None, "friction coefficient of the static problem (2.8)"),
+    "traction": c.Key(c.table_of(c.vector, "[tx, ty]"), None,
+                    "constant traction on traction-free edges {name = [tx, ty]}"),
+    "body_force": c.Key(c.vector, None, "body force [fx, fy] (force per unit area)"),
+    "points": c.Key(c.point_forces, None,
+                  "point forces [{node = i or at = [x, y], force = [fx, fy]}, ...]"),
+    "displacement": c.Key(c.table_of(c.displacement, "[ux, uy] or [[a0, ax, ay], [b0, bx, by]]"),
+                        None, "prescribed displacement per Dirichlet edge (others: zero)"),
+    "reference": c.Key(c.reference, 0.0, "reference tangential displacement u^r: one value or "
+                     "one per contact node, sorted along t"),
+}
 
 SCHEMA: dict[str, dict[str, c.Key]] = {
     "geometry": {
@@ -84,18 +98,7 @@ SCHEMA: dict[str, dict[str, c.Key]] = {
         "maxiter": c.Key(c.integer(1, 10**7), None, "ARPACK iteration cap (default: ARPACK's)"),
         "real_tol": c.Key(c.number(0.0, 1e-2), 1e-8, "|Im a| <= real_tol |a| counts as real"),
     },
-    "load": {
-        "friction": c.Key(c.number(0.0), None, "friction coefficient of the static problem (2.8)"),
-        "traction": c.Key(c.table_of(c.vector, "[tx, ty]"), None,
-                        "constant traction on traction-free edges {name = [tx, ty]}"),
-        "body_force": c.Key(c.vector, None, "body force [fx, fy] (force per unit area)"),
-        "points": c.Key(c.point_forces, None,
-                      "point forces [{node = i or at = [x, y], force = [fx, fy]}, ...]"),
-        "displacement": c.Key(c.table_of(c.displacement, "[ux, uy] or [[a0, ax, ay], [b0, bx, by]]"),
-                            None, "prescribed displacement per Dirichlet edge (others: zero)"),
-        "reference": c.Key(c.reference, 0.0, "reference tangential displacement u^r: one value or "
-                         "one per contact node, sorted along t"),
-    },
+    "load": LOAD,
     "contact": {
         "source": c.Key(c.choice("rules", "coulomb"), "rules", "contact state of the eigenproblem: "
                       "'rules' below, or 'coulomb': the state of the static solution of [load]"),
@@ -110,6 +113,24 @@ SCHEMA: dict[str, dict[str, c.Key]] = {
                           "coefficient|, else 10]"),
         "steps": c.Key(c.integer(10, 5000), 200, "friction steps each way that locate the "
                        "thresholds (then found exactly)"),
+    },
+    "path": {
+        "parameter": c.Key(c.choice(*PARAMETERS), "friction", "the parameter followed: the "
+                           "friction coefficient (load of [load] fixed), or the load factor t "
+                           "of L0 + t L1 (friction of [load] fixed)"),
+        "range": c.Key(c.interval, None, "parameter range [a, b], a < b (friction: a >= 0)"),
+        "start": c.Key(c.choice(*STARTS), "auto", "the solutions the curves start from: auto "
+                       "(every solution by enumeration when there are at most 8 contact nodes, "
+                       "else the Newton solution), newton, enumerate"),
+        "samples": c.Key(c.integer(2, 100001), 101, "parameter values, evenly spaced with the "
+                         "ends, at which every curve holds a point and (small problems) every "
+                         "solution is enumerated"),
+        "node": c.Key(c.integer(0, 2**31), None, "contact node (index along t) whose tangential "
+                      "displacement the diagram shows [the one that moves most]"),
+        "load": c.Key(c.subtable({k: LOAD[k].check for k in LOAD_KEYS}, "those of [load] that "
+                                 "describe a load"), None, "the second load L1 of a load path"),
+        "max_pieces": c.Key(c.integer(1, 10**7), 20000, "refuse a path that would need more "
+                            "pieces than this"),
     },
     "output": {
         "file": c.Key(c.path, None, "HDF5 result file (default: <case name>.h5)"),
@@ -141,6 +162,7 @@ OVERRIDES = {
     "modes": "stability.modes",
     "friction": "stability.friction",
     "steps": "stability.steps",
+    **{k: f"path.{k}" for k in ("parameter", "range", "start", "samples", "node")},
 }
 
 
@@ -163,6 +185,7 @@ class Case:
     load: dict = field(default_factory=dict)
     contact: dict = field(default_factory=dict)
     stability: dict = field(default_factory=dict)
+    path: dict = field(default_factory=dict)
 
     def to_toml(self) -> str:
         """The effective case (overrides applied) as TOML: re-running it gives the same run."""
@@ -334,9 +357,10 @@ def _active_keys(section: str, given: dict, source: str) -> set[str]:
 def _check(spec: c.Key, value, source: str, dotted: str):
     try:
         return spec.check(value)
-    except c.Bad as bad:
-        raise CaseError(f"got {_short(value)}; allowed: {bad}", file=source,
-                        key=dotted) from None
+    except c.Bad as bad:  # a BadEntry names an entry of a table (path.load.traction)
+        entry = isinstance(bad, c.BadEntry)
+        raise CaseError(f"got {_short(bad.value if entry else value)}; allowed: {bad}",
+                        file=source, key=f"{dotted}.{bad.key}" if entry else dotted) from None
 
 
 def _check_consistency(s: dict, source: str) -> None:
@@ -381,28 +405,7 @@ def _check_consistency(s: dict, source: str) -> None:
         raise CaseError(f"edge {sorted(both)[0]!r} is both contact and Dirichlet; an edge has "
                         "one condition", file=source, key="boundary.dirichlet")
     mesh.setdefault("size", None)
-    _check_load(s, names, source)
-
-
-def _check_load(s: dict, names: set | None, source: str) -> None:
-    """[load] edges exist and carry the right condition; node indices exist (inline meshes)."""
-    load, bnd, geo = s["load"], s["boundary"], s["geometry"]
-    for name in load["traction"] or {}:
-        if (names is not None and name not in names) or name in bnd["contact"] + bnd["dirichlet"]:
-            free = sorted((names or set()) - set(bnd["contact"]) - set(bnd["dirichlet"]))
-            raise CaseError(f"got edge {name!r}; allowed: a traction-free edge ("
-                            + (", ".join(free) or "none") + ")", file=source, key="load.traction")
-    for name in load["displacement"] or {}:
-        if name not in bnd["dirichlet"]:
-            raise CaseError(f"got edge {name!r}; allowed: a Dirichlet edge ("
-                            + ", ".join(bnd["dirichlet"]) + ")", file=source,
-                            key="load.displacement")
-    for i, point in enumerate(load["points"] or []):
-        if "node" in point and (geo["shape"] != "mesh" or point["node"] >= len(geo["nodes"])):
-            allowed = (f"a node index < {len(geo['nodes'])}" if geo["shape"] == "mesh" else
-                       "at = [x, y] (node numbers of generated meshes are not stable)")
-            raise CaseError(f"got node = {point['node']}; allowed: {allowed}", file=source,
-                            key=f"load.points.{i}")
+    check_loads(s, names, source)
 
 
 GMSH_SUFFIXES = (".msh", ".geo")

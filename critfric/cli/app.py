@@ -9,7 +9,6 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from typing import Annotated
 
 import typer
 
@@ -27,27 +26,8 @@ from ..fem.elements import NAMES
 from ..files.results import default_output, write_result
 from ..files.safety import check_output, interrupt_guard, output_lock
 from ..solve import solve_case
+from .common import MaxDofs, TrustGeo, app, fmt_values
 from .failures import reported, say, set_verbosity, verbosity
-
-app = typer.Typer(
-    add_completion=True,
-    rich_markup_mode=None,
-    no_args_is_help=True,
-    pretty_exceptions_show_locals=False,
-    help="Critical friction coefficients of Coulomb frictional contact (plane strain).",
-)
-
-
-MaxDofs = Annotated[int | None, typer.Option(
-    "--max-dofs", min=1, help="Refuse meshes above this many DOFs [default: what memory allows].")]
-TrustGeo = Annotated[bool, typer.Option(
-    "--trust-geo", help="Mesh a .geo script even if it can run programs or touch other files.")]
-
-
-def _fmt(values, n: int = 4) -> str:
-    shown = ", ".join(f"{v:.10g}" for v in list(values)[:n])
-    more = len(values) - n
-    return (shown + (f", ... (+{more})" if more > 0 else "")) or "-"
 
 
 def _table(rows: list[dict]) -> str:
@@ -144,8 +124,8 @@ def solve(
                    f"{result.n_contact} contact nodes")
         typer.echo(f"nu        {result.nu:g}   solver {result.solver}   "
                    f"{result.seconds:.2f} s")
-        typer.echo(f"positive  {_fmt(result.positive)}")
-        typer.echo(f"negative  {_fmt(result.negative)}")
+        typer.echo(f"positive  {fmt_values(result.positive)}")
+        typer.echo(f"negative  {fmt_values(result.negative)}")
         typer.echo(f"complex   {result.complex_count}")
         typer.echo(f"critical friction coefficient: {result.critical:.10g}")
 
@@ -224,7 +204,7 @@ def stability(
         typer.echo(f"nu          {result.nu:g}   {result.modes} modes followed over friction "
                    f"{result.friction[0]:.4g} .. {result.friction[-1]:.4g}   "
                    f"{result.seconds:.2f} s")
-        typer.echo(f"frequencies {_fmt(result.frequencies, 5)} (friction 0)")
+        typer.echo(f"frequencies {fmt_values(result.frequencies, 5)} (friction 0)")
         for d in ("positive", "negative"):
             typer.echo(f"{d:<11} flutter {fmt(result.flutter[d]):>16}   divergence "
                        f"{fmt(result.divergence[d]):>16}   first: {result.first(d) or '-'}")
@@ -414,6 +394,9 @@ def verify(
             say(f"wrote {png}")
     if not result.passed:
         raise typer.Exit(1)
+
+
+from . import pathcmd  # noqa: E402, F401 -- registers `critfric path` (in its own module)
 
 
 def version_callback(value: bool) -> None:

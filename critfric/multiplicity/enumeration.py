@@ -29,9 +29,10 @@ from scipy.optimize import linprog
 
 from ..errors import CaseError, SolverError
 from ..fem.static import StaticProblem
-from ..solvers.coulomb import condense, violations
+from ..solvers.coulomb import violations
 from ..solvers.eigen import INFINITE_TOL
 from .problems import static_problem
+from .states import LABELS, Condensed
 
 MAX_NODES = 8
 SINGULAR_TOL = 1e-9
@@ -40,8 +41,6 @@ REAL_TOL = 1e-8
 FEASIBLE_TOL = 1e-9
 SAME_TOL = 1e-7
 CHUNK = 4096  # status combinations per batched SVD
-LABELS = ("free", "stuck", "slip+", "slip-")
-FREE, STUCK, SLIP_PLUS, SLIP_MINUS = range(4)
 
 
 @dataclass
@@ -107,76 +106,36 @@ class Enumeration:
 
 
 class Enumerator:
-    """The condensed problem of a small case, ready to enumerate at any friction value."""
+    """The condensed problem of a small case, ready to enumerate at any friction value
+    (``condensed``: its :class:`critfric.multiplicity.states.Condensed`, if already made)."""
 
-    def __init__(self, problem: StaticProblem):
-        p = problem.system.n_contact
+    def __init__(self, problem: StaticProblem | None, condensed: Condensed | None = None):
+        cz = condensed or Condensed.of(problem)
+        p = cz.p
         if p > MAX_NODES:
             raise SolverError(f"exact enumeration needs 4^p linear systems: p = {p} contact "
                               f"nodes is above {MAX_NODES}; use the Newton solver "
                               "(critfric.coulomb.solve) or a coarser mesh")
-        cond, self.u0 = condense(problem)
-        self.p, self.Ur = p, problem.reference
-        self.C = np.linalg.inv(cond.S)
-        self.C = 0.5 * (self.C + self.C.T)
-        self.r = float(np.mean(np.diag(cond.S)))  # scales the displacement rows to forces
-        stuck = cond.S @ (np.concatenate([np.zeros(p), self.Ur]) - self.u0)
-        self.F = max(np.abs(stuck).max(), np.abs(cond.S @ self.u0).max(), 1e-300)
-        self.D = max(np.abs(self.u0).max(), np.abs(self.Ur).max(), self.F / self.r)
+        self.cz, self.p, self.Ur, self.u0 = cz, p, cz.Ur, cz.u0
+        self.F, self.D = cz.F, cz.D
         self.codes = np.array(list(itertools.product(range(4), repeat=p)), dtype=np.int8)
         self._critical = None
 
     def contact(self, z: np.ndarray):
         """(U_n, U_t, X, Y) of contact forces z (..., 2p)."""
-        u = self.u0 + z @ self.C.T
-        p = self.p
-        return u[..., :p], u[..., p:], z[..., :p], z[..., p:]
+        return self.cz.contact(z)
 
     def point(self, z: np.ndarray, friction: float) -> Solution:
         Un, Ut, X, Y = self.contact(z)
-        return Solution(Un, Ut, X, Y, self._labels(Un, Ut, X, Y, friction))
-
-    def _labels(self, Un, Ut, X, Y, friction) -> list[str]:
-        tf, td = FEASIBLE_TOL * self.F, FEASIBLE_TOL * self.D
-        w = Ut - self.Ur
-        return ["free" if un < -td else "stuck" if abs(y) < -friction * x - tf else
-                "slip+" if wi > td else "slip-" if wi < -td else "cone"
-                for un, x, y, wi in zip(Un, X, Y, w)]
+        return Solution(Un, Ut, X, Y, self.cz.labels(z, friction))
 
     def systems(self, codes: np.ndarray, friction: float):
         """Batched A z = b (n, 2p, 2p) of the status combinations ``codes`` (n, p)."""
-        p, r = self.p, self.r
-        I = np.eye(2 * p)
-        EX, EY = I[:p], I[p:]
-        c = codes[..., None]
-        gamma = np.where(codes == SLIP_PLUS, 1.0, -1.0)[..., None]
-        first = np.where(c == FREE, EX, r * self.C[:p])
-        second = np.where(c == FREE, EY, np.where(c == STUCK, r * self.C[p:],
-                                                  EY - gamma * friction * EX))
-        b1 = np.where(codes == FREE, 0.0, -r * self.u0[:p])
-        b2 = np.where(codes == STUCK, r * (self.Ur - self.u0[p:]), 0.0)
-        return np.concatenate([first, second], axis=1), np.concatenate([b1, b2], axis=1)
+        return self.cz.systems(codes, friction)
 
     def inequalities(self, code: np.ndarray, friction: float):
         """G z <= h of one status combination, rows scaled by F or D."""
-        p, rows, rhs = self.p, [], []
-        I = np.eye(2 * p)
-        for i, s in enumerate(code):  # loop over the (at most 8) nodes of one combination
-            if s == FREE:
-                rows.append(self.C[i] / self.D)
-                rhs.append(-self.u0[i] / self.D)
-            else:
-                rows.append(I[i] / self.F)
-                rhs.append(0.0)
-            if s == STUCK:
-                rows += [(I[p + i] + friction * I[i]) / self.F,
-                         (-I[p + i] + friction * I[i]) / self.F]
-                rhs += [0.0, 0.0]
-            elif s in (SLIP_PLUS, SLIP_MINUS):
-                g = 1.0 if s == SLIP_PLUS else -1.0
-                rows.append(-g * self.C[p + i] / self.D)
-                rhs.append(g * (self.u0[p + i] - self.Ur[i]) / self.D)
-        return np.array(rows), np.array(rhs)
+        return self.cz.inequalities(code, friction)[:2]
 
     def critical_values(self, codes: np.ndarray) -> np.ndarray:
         """(n, 2p) real critical values of each status combination (NaN: none): A(friction) =
@@ -241,8 +200,7 @@ class Enumerator:
         return Enumeration(float(friction), points, kept)
 
     def _norm(self, z: np.ndarray) -> np.ndarray:
-        Un, Ut, X, Y = self.contact(z)
-        return np.concatenate([X / self.F, Y / self.F, Un / self.D, Ut / self.D])
+        return self.cz.norm(z)
 
     def _continuum(self, code, z0, N, friction):
         """The feasible part of z0 + span(N): a Continuum, a single point (z) or None."""
@@ -267,7 +225,7 @@ class Enumerator:
 
     def _direction(self, n: np.ndarray) -> Solution:
         """A null direction n of the forces with its displacements, the largest U_t > 0."""
-        du, p = self.C @ n, self.p
+        du, p = self.cz.C @ n, self.p
         ref = du[p:] if np.any(du[p:]) else n
         sign = np.sign(ref[np.argmax(np.abs(ref))]) or 1.0
         du, n = sign * du, sign * n

@@ -62,27 +62,35 @@ def contact_state(case: Case, system: ContactSystem) -> ContactState | None:
 
 
 
-def case_problem(case: Case, system: ContactSystem, *,
-                 friction: float | None = None) -> StaticProblem:
+LOAD_KEYS = ("traction", "body_force", "points", "displacement")  # what makes a load
+
+
+def case_problem(case: Case, system: ContactSystem, *, friction: float | None = None,
+                 load: dict | None = None, key: str = "load") -> StaticProblem:
     """The static problem of a case's ``[load]`` on the mesh and contact basis of ``system``
-    (``friction`` overrides ``[load] friction``)."""
-    mesh, load = system.mesh, case.load
+    (``friction`` overrides ``[load] friction``; ``load``: another load, with the keys
+    LOAD_KEYS, in place of [load]'s, with U^r = 0; ``key``: its name in messages)."""
+    mesh = system.mesh
+    load = case.load if load is None else {**dict.fromkeys(LOAD_KEYS), **load,
+                                           "reference": 0.0, "friction": None}
     lam, G = lame(case.material["E"], case.material["nu"])
     force = np.zeros(2 * mesh.n_nodes)
     for name, vector in (load["traction"] or {}).items():
         if name not in mesh.edges:
             raise CaseError(f"got edge {name!r}, which the mesh does not have; allowed: "
-                            + ", ".join(sorted(mesh.edges)), file=case.source, key="load.traction")
+                            + ", ".join(sorted(mesh.edges)), file=case.source,
+                            key=f"{key}.traction")
         force += traction_load(mesh, name, vector)
     if load["body_force"] is not None:
         force += body_force_load(mesh, load["body_force"])
     fixed = set(system.fixed.tolist())
     for i, point in enumerate(load["points"] or []):
-        node = point["node"] if "node" in point else _node_at(mesh, point["at"], case.source, i)
+        node = point["node"] if "node" in point else _node_at(mesh, point["at"], case.source,
+                                                               f"{key}.points.{i}")
         if 2 * node in fixed:
             raise CaseError(f"node {node} is on a Dirichlet edge, where a force has no effect; "
                             "allowed: a node that is not clamped", file=case.source,
-                            key=f"load.points.{i}")
+                            key=f"{key}.points.{i}")
         force[2 * node: 2 * node + 2] += point["force"]
     reference = load["reference"]
     if isinstance(reference, list) and len(reference) != system.n_contact:
@@ -91,24 +99,24 @@ def case_problem(case: Case, system: ContactSystem, *,
                         file=case.source, key="load.reference")
     friction = load["friction"] if friction is None else friction
     return build(system, lam, G, load_xy=force, reference=reference, friction=friction,
-                 fixed_xy=_dirichlet_values(case, mesh))
+                 fixed_xy=_dirichlet_values(case, mesh, load["displacement"], key))
 
 
-def _node_at(mesh: Mesh, at, source: str, i: int) -> int:
+def _node_at(mesh: Mesh, at, source: str, key: str) -> int:
     d = np.linalg.norm(mesh.points - np.asarray(at), axis=1)
     node = int(np.argmin(d))
     if d[node] > NODE_TOL * np.ptp(mesh.points, axis=0).max():
         raise CaseError(f"no mesh node at {at} (nearest: {mesh.points[node].tolist()}, at "
                         f"distance {d[node]:.3g}); allowed: the coordinates of a node, such as a "
-                        "vertex of the geometry", file=source, key=f"load.points.{i}")
+                        "vertex of the geometry", file=source, key=key)
     return node
 
 
-def _dirichlet_values(case: Case, mesh: Mesh) -> np.ndarray:
+def _dirichlet_values(case: Case, mesh: Mesh, fields: dict | None, key: str) -> np.ndarray:
     """Prescribed displacements (2 n_nodes,): the affine field of each Dirichlet edge, else 0."""
     u = np.zeros((mesh.n_nodes, 2))
     given = np.zeros(mesh.n_nodes, dtype=bool)
-    fields = case.load["displacement"] or {}
+    fields = fields or {}
     for name in case.boundary["dirichlet"]:  # loop over edge names (a handful)
         nodes = mesh.edge_nodes([name])
         coef = np.asarray(fields.get(name, np.zeros((2, 3))))
@@ -119,6 +127,6 @@ def _dirichlet_values(case: Case, mesh: Mesh) -> np.ndarray:
         if clash.any():
             raise CaseError(f"node {int(nodes[clash][0])} of Dirichlet edge {name!r} gets two "
                             "different displacements from two edges; allowed: fields that "
-                            "agree at shared nodes", file=case.source, key="load.displacement")
+                            "agree at shared nodes", file=case.source, key=f"{key}.displacement")
         u[nodes], given[nodes] = value, True
     return u.ravel()

@@ -90,6 +90,12 @@ def option(what, *extra, words=()):
     return Bad(what, {"case.toml": SQUARE}, ("solve", "case.toml", *extra), 2, words)
 
 
+def path(what, lines, *words, options=()):
+    """critfric path on the square with ``lines`` in its [path] section."""
+    return Bad(what, {"case.toml": SQUARE + "[path]\n" + lines + "\n"},
+               ("path", "case.toml", *options), 2, words)
+
+
 CATALOGUE = [
     # --- the TOML file itself
     case("TOML syntax error", edit("size = 0.5", "size = = 0.5"), "TOML syntax error", "line"),
@@ -224,6 +230,37 @@ CATALOGUE = [
         ("r.h5", "cannot read")),
     Bad("table of a foreign HDF5 file", {"r.h5": "@foreign"}, ("table", "r.h5"), 2,
         ("r.h5", "not a critfric")),
+    # --- critfric path and [path]: all refused by the schema, before any computation
+    path("path: unknown parameter", 'parameter = "temperature"', "case.toml", "path.parameter",
+         "'friction'", "'load'"),
+    path("path: range reversed", "", "path.range", "a < b", options=("--range", "3:1")),
+    path("path: range empty", "range = [1.0, 1.0]", "path.range", "a < b"),
+    path("path: range of one number", "", "--range", "A:B", options=("--range", "2")),
+    path("path: range with a full-width digit", "", "--range", "ASCII",
+         options=("--range", "0:\uff13")),
+    path("path: range not a list", 'range = "0:3"', "path.range", "two numbers"),
+    path("path: friction range below 0", "range = [-0.5, 2.0]", "path.range", "0 <= a"),
+    path("path: samples 1", "samples = 1", "path.samples", "[2, 100001]"),
+    path("path: samples not an integer", "samples = 10.5", "path.samples", "integer"),
+    path("path: node -1", "", "path.node", "integer", options=("--node", "-1")),
+    path("path: unknown start", 'start = "guess"', "path.start", "'enumerate'"),
+    path("path: max_pieces 0", "max_pieces = 0", "path.max_pieces", "[1, 10000000]"),
+    path("path: unknown key", "steps = 10", "path.steps", "allowed", "samples"),
+    path("path: load not a table", "load = 3", "path.load", "a table"),
+    path("path: load key [load] has but a load lacks", "load = { reference = 0.0 }",
+         "path.load.reference", "traction, body_force, points, displacement"),
+    path("path: load friction", "load = { friction = 1.0 }", "path.load.friction",
+         "only the keys"),
+    path("path: bad load value", "load = { body_force = [1.0, nan] }", "path.load.body_force",
+         "finite"),
+    path("path: load traction on the contact edge", "load = { traction = { bottom = [1, 0] } }",
+         "path.load.traction", "'bottom'", "traction-free"),
+    path("path: load displacement on a free edge", "load = { displacement = { left = [1, 0] } }",
+         "path.load.displacement", "'left'", "Dirichlet edge (top)"),
+    path("path: load point by node on a gmsh mesh",
+         "load = { points = [{ node = 0, force = [1, 0] }] }", "path.load.points.0", "at = [x, y]"),
+    path("path: load path without L1", 'parameter = "load"\nrange = [0.0, 1.0]', "path.load",
+         "second load L1"),
     # --- sweeps, plots and exports
     Bad("sweep nu outside [0, 0.5)", {}, ("sweep", "--nu", "0.7"), 2, ("--nu", "0.7", "0.5")),
     Bad("sweep nu range past 0.5", {}, ("sweep", "--nu", "0.6:0.8"), 2, ("--nu", "0.6:0.8")),

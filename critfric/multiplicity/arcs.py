@@ -1,0 +1,278 @@
+"""One piece of a solution curve: a contact state followed along the parameter, exactly.
+
+The parameter t is the friction (load fixed) or the load factor of L0 + t L1 (friction fixed).
+In a state (:mod:`.states`) the solution is z(t) = A(t)^-1 b(t):
+
+* load: A is fixed and b affine in t, so z is affine and every inequality g_j(t) is affine:
+  the piece ends at the first root of the g_j (a ratio test, as in a pivoting method);
+* friction: A(f) = A0 + f E F^T (the slip rows), b fixed. With z0 = A0^-1 b, Z1 = A0^-1 E,
+  H = F^T Z1 and q = F^T z0 (Woodbury): z(f) = z0 - f Z1 y(f), (I + f H) y = q. z is rational
+  in f with poles at -1/lambda, lambda the eigenvalues of H: the real ones are the critical
+  coefficients of the state (eigenproblem (3.2)). An inequality is
+  g_j(f) = a_j + f b_j - f (P_j + f Q_j)^T y(f), and its roots are the finite eigenvalues of
+  a linear pencil of size 2 p0 + 1 (y, w = f y, 1): exact, for states with at most
+  EXACT_SLIP slipping nodes; above that the roots are bracketed on a grid (GRID points, and
+  points that close in geometrically on every pole near the interval) and found by Brent's
+  method to ROOT_TOL.
+
+A continuum (a *null* arc) is z + c n at fixed t, n a null vector of a singular A: its
+inequalities are affine in c.
+
+Criteria (stated once): a piece shorter than MIN_STEP (relative to the range) is empty; a point
+is feasible when every scaled inequality is <= FEASIBLE_TOL; a root within MIN_STEP of the
+start of a piece is the start itself (a piece that leaves through it at once is empty, which
+the midpoint check finds); the friction is on a critical value when within SINGULAR_TOL
+(relative) of it; a pole is removable (the curve goes through it) when its residue is at most
+SINGULAR_TOL F.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as la
+from scipy.optimize import brentq
+
+from ..solvers.eigen import INFINITE_TOL
+from .states import SLIP_MINUS, SLIP_PLUS, Condensed
+
+EXACT_SLIP = 16
+GRID = 64
+ROOT_TOL = 1e-12
+MIN_STEP = 1e-10
+FEASIBLE_TOL = 1e-9
+SINGULAR_TOL = 1e-9
+REAL_TOL = 1e-8
+
+
+class Track:
+    """The parameter of a path: friction(t) and u0(t) (contact displacements under the load)."""
+
+    def __init__(self, cz: Condensed, parameter: str, friction: float | None,
+                 u0_load: np.ndarray | None, span: tuple[float, float]):
+        self.cz, self.parameter, self.fixed = cz, parameter, friction
+        self.u0b = np.zeros_like(cz.u0) if u0_load is None else u0_load
+        self.span = span
+        self.length = max(span[1] - span[0], 1e-300)
+
+    def friction(self, t: float) -> float:
+        return float(t) if self.parameter == "friction" else float(self.fixed)
+
+    def u0(self, t: float) -> np.ndarray:
+        return self.cz.u0 if self.parameter == "friction" else self.cz.u0 + t * self.u0b
+
+
+class State:
+    """A contact state along the parameter: its critical values and its pieces."""
+
+    def __init__(self, track: Track, code: np.ndarray):
+        self.track, self.cz, self.code = track, track.cz, np.asarray(code, dtype=np.int8)
+        cz, p = self.cz, self.cz.p
+        self.slip = np.flatnonzero((self.code == SLIP_PLUS) | (self.code == SLIP_MINUS))
+        gamma = np.where(self.code[self.slip] == SLIP_PLUS, 1.0, -1.0)
+        # A(f) = A0 + f E F^T: E the slip Y rows, F^T = -gamma X_slip
+        self.E = np.zeros((2 * p, len(self.slip)))
+        self.E[p + self.slip, np.arange(len(self.slip))] = 1.0
+        self.Ft = np.zeros((len(self.slip), 2 * p))
+        self.Ft[np.arange(len(self.slip)), self.slip] = -gamma
+        A0, _ = cz.systems(self.code, 0.0)
+        self.lu0 = la.lu_factor(A0, check_finite=False)
+        self.Z1 = la.lu_solve(self.lu0, self.E)
+        self.H = self.Ft @ self.Z1
+        lam = la.eigvals(self.H) if len(self.slip) else np.zeros(0)
+        real = (np.abs(lam.imag) <= REAL_TOL * np.abs(lam)) & (np.abs(lam) > INFINITE_TOL)
+        self.critical = np.sort(-1.0 / lam[real].real)
+        self.poles = -1.0 / lam[np.abs(lam) > INFINITE_TOL]  # complex too: for the grid
+        self.lu = None
+        if track.parameter == "load" and self.singular_at(track.fixed) is None:
+            self.lu = la.lu_factor(self.A(track.fixed), check_finite=False)
+
+    # ------------------------------------------------------------------ the linear system
+    def A(self, f: float) -> np.ndarray:
+        return self.cz.systems(self.code, f)[0]
+
+    def b(self, t: float) -> np.ndarray:
+        return self.cz.systems(self.code, 0.0, u0=self.track.u0(t))[1]
+
+    def singular_at(self, f: float) -> float | None:
+        """The critical value of the state that f is on, or None."""
+        near = np.abs(self.critical - f) <= SINGULAR_TOL * np.maximum(np.abs(self.critical), 1)
+        return float(self.critical[near][0]) if near.any() else None
+
+    def margins(self) -> tuple[float | None, float | None]:
+        """The lowest positive and the negative of least modulus critical value."""
+        pos, neg = self.critical[self.critical > 0], self.critical[self.critical < 0]
+        return (float(pos[0]) if len(pos) else None, float(neg[-1]) if len(neg) else None)
+
+    def solve(self, t: float) -> np.ndarray:
+        """z(t) of a regular state."""
+        f, b = self.track.friction(t), self.b(t)
+        if self.lu is not None:
+            return la.lu_solve(self.lu, b)
+        z0 = la.lu_solve(self.lu0, b)
+        y = la.solve(np.eye(len(self.slip)) + f * self.H, self.Ft @ z0, check_finite=False)
+        return z0 - f * self.Z1 @ y
+
+    def slack(self, t: float, z: np.ndarray) -> np.ndarray:
+        return self.cz.slack(self.code, self.track.friction(t), z, u0=self.track.u0(t))
+
+    def null(self, f: float) -> np.ndarray:
+        """Unit null vectors (2p, k) of the singular A(f) (scaled coordinates' norm)."""
+        _, sv, Vt = la.svd(self.A(f))
+        N = Vt[sv <= np.sqrt(SINGULAR_TOL) * sv[0]].T
+        if N.shape[1] == 0:
+            N = Vt[-1:].T
+        scale = np.abs(self.cz.norm(N.T, u0=np.zeros_like(self.cz.u0))).max(axis=1)
+        return N / scale
+
+    # ------------------------------------------------------------------ pieces
+    def exit(self, t0: float, z0: np.ndarray, d: int):
+        """The end of the piece from (t0, z0) in direction d (+1/-1): (t_end, z_end, why),
+        why in {"row", "end", "pole"}; None if the piece is empty (infeasible at once)."""
+        lim = self.track.span[1] if d > 0 else self.track.span[0]
+        if d * (lim - t0) <= MIN_STEP * self.track.length:
+            return None
+        if self.track.parameter == "load":
+            s_end, why = self._load_exit(t0, z0, d, lim)
+        else:
+            s_end, why = self._friction_exit(t0, d, lim)
+        if s_end <= MIN_STEP * self.track.length:
+            return None
+        mid = t0 + d * 0.5 * s_end
+        if self.slack(mid, self.solve(mid)).max(initial=-np.inf) > FEASIBLE_TOL:
+            return None
+        t1 = lim if why == "end" else t0 + d * s_end
+        return t1, (self.solve(t1) if why != "pole" else self.limit(t1)), why
+
+    def _load_exit(self, t0, z0, d, lim):
+        zb = self.solve_direction()
+        g0 = self.slack(t0, z0)
+        slope = d * self.cz.slack(self.code, self.track.fixed, zb, u0=self.track.u0b,
+                                  Ur=np.zeros(self.cz.p))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.where(slope > 0, -g0 / slope, np.inf)
+        s = s[s > MIN_STEP * self.track.length]
+        end = abs(lim - t0)
+        first = s.min(initial=np.inf)
+        return (first, "row") if first < end else (end, "end")
+
+    def solve_direction(self) -> np.ndarray:
+        """dz/dt of a load path: A z' = b(u0 of L1, U^r = 0)."""
+        _, b1 = self.cz.systems(self.code, 0.0, u0=self.track.u0b, Ur=np.zeros(self.cz.p))
+        return la.lu_solve(self.lu, b1)
+
+    def _friction_exit(self, t0, d, lim):
+        end = abs(lim - t0)
+        real = self.critical[(d * (self.critical - t0) > MIN_STEP * self.track.length)]
+        poles = np.abs(real - t0)
+        pole = poles.min(initial=np.inf)
+        upto = min(end, pole)
+        roots = self._roots(t0, d, upto)
+        if roots < upto:
+            return roots, "row"
+        if pole <= end:
+            return pole, "pole"
+        return end, "end"
+
+    def _parts(self, t0: float):
+        """The rows as g(f) = a + f b - f (P + f Q) y(f), (I + f H) y = q."""
+        z0 = la.lu_solve(self.lu0, self.b(t0))
+        cz, u0 = self.cz, self.track.u0(t0)
+        a = cz.slack(self.code, 0.0, z0, u0=u0)
+        linear = lambda f: cz.slack(self.code, f, self.Z1.T, u0=np.zeros_like(z0),
+                                    Ur=np.zeros(cz.p)).T
+        P = linear(0.0)
+        return a, cz.slack(self.code, 1.0, z0, u0=u0) - a, P, linear(1.0) - P, self.Ft @ z0
+
+    def _g(self, f, parts):
+        a, b, P, Q, q = parts
+        y = la.solve(np.eye(len(q)) + f * self.H, q, check_finite=False)
+        return a + f * b - f * ((P + f * Q) @ y)
+
+    def _roots(self, t0: float, d: int, upto: float) -> float:
+        """The first s in (MIN_STEP, upto) with a row g_j(t0 + d s) = 0 (inf if none)."""
+        parts = self._parts(t0)
+        p0, L = len(self.slip), self.track.length
+        if p0 == 0:  # nothing depends on the friction but the stuck cones: affine rows
+            a, b = parts[0], parts[1]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                s = np.where(d * b != 0, -(a + t0 * b) / (d * b), np.inf)
+            s = s[(s > MIN_STEP * L) & (s < upto)]
+            return s.min(initial=np.inf)
+        probes = t0 + d * upto * np.array([0.2113, 0.5, 0.7887])
+        scale = np.abs(np.stack([self._g(f, parts) for f in probes])).max(axis=0)
+        live = np.flatnonzero(scale > FEASIBLE_TOL)  # rows not identically zero
+        if p0 <= EXACT_SLIP:
+            found = self._pencil_roots(parts, live, t0, d, upto)
+        else:
+            found = self._grid_roots(parts, live, t0, d, upto)
+        return min(found, default=np.inf)
+
+    def _pencil_roots(self, parts, live, t0, d, upto) -> list[float]:
+        a, b, P, Q, q = parts
+        p0, L = len(q), self.track.length
+        I, Z = np.eye(p0), np.zeros((p0, p0))
+        out = []
+        for j in live:  # loop over the rows of one state, each a pencil of size 2 p0 + 1
+            M0 = np.block([[I, Z, -q[:, None]], [Z, I, np.zeros((p0, 1))],
+                           [np.zeros((1, p0)), -P[j][None], np.array([[a[j]]])]])
+            M1 = np.block([[self.H, Z, np.zeros((p0, 1))], [-I, Z, np.zeros((p0, 1))],
+                           [np.zeros((1, p0)), -Q[j][None], np.array([[b[j]]])]])
+            with np.errstate(all="ignore"):
+                f = la.eigvals(M0, -M1)
+            f = f[np.isfinite(f) & (np.abs(f.imag) <= REAL_TOL * np.maximum(np.abs(f), 1))].real
+            s = d * (f - t0)
+            for si in s[(s > MIN_STEP * L) & (s < upto)]:  # a few candidate roots
+                fi = t0 + d * si
+                if self.singular_at(fi) is None and abs(self._g(fi, parts)[j]) <= 1e-6:
+                    out.append(si)
+        return out
+
+    def _grid_roots(self, parts, live, t0, d, upto) -> list[float]:
+        s = np.linspace(0.0, upto, GRID + 1)[1:]
+        for pole in self.poles:  # close in on every pole near the interval
+            c = d * (pole.real - t0)
+            w = max(abs(pole.imag), 1e-12 * self.track.length)
+            s = np.concatenate([s, c + np.outer([-1, 1], w * np.geomspace(1e4, 1, 13)).ravel()])
+        s = np.unique(s[(s > MIN_STEP * self.track.length) & (s < upto)])
+        g = np.stack([self._g(t0 + d * si, parts)[live] for si in s])
+        bad = g > 0
+        if not bad.any():
+            return []
+        k = int(np.argmax(bad.any(axis=1)))
+        lo = 0.0 if k == 0 else s[k - 1]
+        out = []
+        for j in live[bad[k]]:
+            fn = lambda x, j=j: self._g(t0 + d * x, parts)[j]
+            try:
+                out.append(brentq(fn, max(lo, MIN_STEP * self.track.length), s[k],
+                                  xtol=ROOT_TOL * self.track.length, rtol=4e-16))
+            except ValueError:  # no sign change inside (an end is a root): take the end
+                out.append(s[k])
+        return out
+
+    def limit(self, f: float) -> np.ndarray | None:
+        """The limit of z at the critical value f where the pole is removable, else None."""
+        lam, V = la.eig(self.H)
+        z0 = la.lu_solve(self.lu0, self.b(f))
+        w = la.solve(V, self.Ft @ z0)
+        at = np.abs(1.0 + f * lam) <= SINGULAR_TOL * np.maximum(np.abs(f * lam), 1.0)
+        residue = np.abs(self.Z1 @ (V[:, at] * w[at])).max(initial=0.0) * abs(f)
+        if residue > SINGULAR_TOL * self.cz.F * max(abs(f), 1.0):
+            return None
+        y = V[:, ~at] @ (w[~at] / (1.0 + f * lam[~at]))
+        return (z0 - f * self.Z1 @ y).real
+
+    def null_exit(self, t: float, z0: np.ndarray, n: np.ndarray):
+        """The end of the continuum z0 + c n, c >= 0: (c_end or inf, z_end or None), or None
+        if it is empty."""
+        g0 = self.slack(t, z0)
+        slope = self.cz.slack(self.code, self.track.friction(t), n, u0=np.zeros_like(z0),
+                              Ur=np.zeros(self.cz.p))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c = np.where(slope > FEASIBLE_TOL, -g0 / slope, np.inf)
+        c = c[c > MIN_STEP]
+        end = c.min(initial=np.inf)
+        probe = 0.5 * end if np.isfinite(end) else 1.0
+        if end <= MIN_STEP or self.slack(t, z0 + probe * n).max() > FEASIBLE_TOL:
+            return None
+        return end, (z0 + end * n if np.isfinite(end) else None)

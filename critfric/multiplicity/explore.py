@@ -1,0 +1,335 @@
+"""Following every solution curve of (2.8) along a parameter, piece by piece.
+
+The solution set is a union of pieces (:mod:`.arcs`), each in one contact state, meeting at
+*vertices*, where a node's values reach the boundary between two statuses. At a vertex, the
+states of which the point is a solution (every combination of the statuses each node is
+consistent with) give the pieces that leave it, both ways in the parameter; a state whose
+system is singular there (the friction is a critical coefficient of it) gives the continuum
+z + c n both ways along its null vectors. Pieces are told apart by their midpoints: a piece
+already walked (from either end) is not walked again, so the exploration ends.
+
+Events: two pieces at a vertex with the same direction in the parameter make a kink (the
+status of a node changes), with opposite directions a fold (the curve turns back); a vertex
+with a singular state or more than two pieces is a branch point. A piece may also end where
+the solution grows without bound (a pole of a friction piece that is not removable): a branch
+point at infinity.
+
+Where more than MAX_STATES states meet at a vertex (nodes at the vertex of their Coulomb law,
+as at the origin of a load that starts from zero), the pieces leaving it are those of the
+Newton solution a step PROBE (relative to the range) away, each way.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import SolverError
+from ..solvers.coulomb import Complementarity, _converged
+from .arcs import MIN_STEP, State, Track
+from .pathresult import Curve, Event, PathPoint, Piece
+from .states import FREE, LABELS, SLIP_MINUS, SLIP_PLUS, STUCK
+
+MAX_STATES = 64
+SAME_TOL = 1e-7
+PROBE = 1e-6
+CODES = {"free": FREE, "stuck": STUCK, "slip+": SLIP_PLUS, "slip-": SLIP_MINUS, "cone": STUCK}
+
+
+@dataclass
+class Arc:
+    """A piece leaving a vertex: in ``state``, along the parameter (d = +1/-1) or along the
+    null vector n at fixed t (d = 0); its end (t1, z1), z1 None where it is unbounded."""
+
+    state: State
+    t0: float
+    z0: np.ndarray
+    d: int
+    t1: float
+    z1: np.ndarray | None
+    why: str
+    n: np.ndarray | None = None
+    c1: float = 0.0
+    key: np.ndarray = field(default=None, repr=False)
+
+    def at(self, frac: float) -> tuple[float, np.ndarray]:
+        """The point a fraction of the way along (the middle of an unbounded null arc: c=1)."""
+        if self.d == 0:
+            c = frac * self.c1 if np.isfinite(self.c1) else 1.0
+            return self.t0, self.z0 + c * self.n
+        t = self.t0 + frac * (self.t1 - self.t0)
+        return t, self.state.solve(t)
+
+
+class Explorer:
+    """Curves, events and pieces of one path (``samples``: values every curve holds)."""
+
+    def __init__(self, track: Track, samples: np.ndarray, max_pieces: int):
+        self.track, self.cz, self.samples = track, track.cz, samples
+        self.max_pieces = max_pieces
+        self.states: dict[bytes, State] = {}
+        self.walked: list[np.ndarray] = []
+        self.vertices: list[tuple[np.ndarray, int | None]] = []
+        self.curves: list[Curve] = []
+        self.events: list[Event] = []
+        self.hits: dict[int, list[np.ndarray]] = {}  # sample index -> points on curves
+        self.notes: list[str] = []
+        self.pieces = 0
+
+    # ------------------------------------------------------------------ geometry
+    def key(self, t: float, z: np.ndarray) -> np.ndarray:
+        return np.concatenate([[t / self.track.length], self.cz.norm(z, self.track.u0(t))])
+
+    def state(self, code) -> State:
+        code = np.asarray(code, dtype=np.int8)
+        k = code.tobytes()
+        if k not in self.states:
+            self.states[k] = State(self.track, code)
+        return self.states[k]
+
+    def point(self, t: float, z: np.ndarray, piece: int) -> PathPoint:
+        Un, Ut, X, Y = self.cz.contact(z, self.track.u0(t))
+        f = self.track.friction(t)
+        return PathPoint(float(t), self.cz.labels(z, f, self.track.u0(t)), Un, Ut, X, Y, piece)
+
+    # ------------------------------------------------------------------ arcs at a vertex
+    def arcs(self, t: float, z: np.ndarray) -> tuple[list[Arc], list[State]]:
+        """Every piece leaving the vertex (t, z), one per geometric piece, and the singular
+        states there."""
+        f, u0 = self.track.friction(t), self.track.u0(t)
+        ok = self.cz.consistent(z, f, u0)
+        if not ok.any(axis=1).all():
+            return [], []
+        options = [np.flatnonzero(row) for row in ok]
+        if np.prod([len(o) for o in options], dtype=float) > MAX_STATES:
+            return self._probed(t, z), []
+        found, singular = [], []
+        for code in itertools.product(*options):  # the few states that meet at a vertex
+            st = self.state(code)
+            crit = st.singular_at(f)
+            if crit is not None:
+                singular.append(st)
+                found += self._null_arcs(st, t, z)
+                if self.track.parameter == "load":
+                    continue
+                lim = st.limit(f)
+                if lim is None or np.abs(self.cz.norm(lim - z, 0 * u0)).max() > SAME_TOL:
+                    continue
+            for d in (1, -1):
+                end = st.exit(t, z, d)
+                if end is not None:
+                    found.append(Arc(st, t, z, d, *end))
+        return self._distinct(found), singular
+
+    def _null_arcs(self, st: State, t, z) -> list[Arc]:
+        out = []
+        N = st.null(self.track.friction(t))
+        for j in range(N.shape[1]):  # the null vectors (one, but for degenerate states)
+            for n in (N[:, j], -N[:, j]):
+                end = st.null_exit(t, z, n)
+                if end is not None:
+                    out.append(Arc(st, t, z, 0, t, end[1], "row" if end[1] is not None
+                                   else "unbounded", n=n, c1=end[0]))
+        return out
+
+    def _probed(self, t, z) -> list[Arc]:
+        """The pieces of the Newton solutions a step PROBE away, each way."""
+        out = []
+        for d in (1, -1):
+            s = t + d * PROBE * self.track.length
+            if not self.track.span[0] <= s <= self.track.span[1]:
+                continue
+            code = [CODES[w] for w in self.cz.labels(self._newton(s, z), self.track.friction(s),
+                                                      self.track.u0(s))]
+            st = self.state(code)
+            if st.singular_at(self.track.friction(t)) is None:
+                end = st.exit(t, z, d)
+                if end is not None:
+                    out.append(Arc(st, t, z, d, *end))
+        if out:
+            self.notes.append(f"at {t:.10g} more than {MAX_STATES} contact states meet: the "
+                              "pieces leaving it are those of the Newton solution")
+        return self._distinct(out)
+
+    def _newton(self, t: float, z: np.ndarray) -> np.ndarray:
+        """The contact forces of the Newton solution at t, from z."""
+        cz = self.cz
+        comp = Complementarity(cz.cond.S, self.track.u0(t), cz.Ur, self.track.friction(t))
+        uc = self.track.u0(t) + cz.C @ z
+        F, J, active = comp.evaluate(uc)
+        history, previous = [comp.residual(uc)], None
+        for _ in range(50):  # semi-smooth Newton: a few steps from a near point
+            if _converged(history, active, previous, 1e-12):
+                break
+            uc = uc + np.linalg.lstsq(J, -F, rcond=None)[0]
+            previous = active
+            F, J, active = comp.evaluate(uc)
+            history.append(comp.residual(uc))
+        return comp.forces(uc)
+
+    def _distinct(self, arcs: list[Arc]) -> list[Arc]:
+        """One arc per geometric piece: of arcs that coincide, the shortest (ties: the most
+        slipping nodes); each with the key of its midpoint."""
+        arcs = sorted(arcs, key=lambda a: (abs(a.t1 - a.t0) if a.d else a.c1, -len(a.state.slip)))
+        kept: list[Arc] = []
+        for a in arcs:  # a handful of candidates
+            a.key = self.key(*a.at(0.5))
+            if not any(b.d == a.d and self._same(a, b) for b in kept):
+                kept.append(a)
+        return kept
+
+    def _same(self, a: Arc, b: Arc) -> bool:
+        """Whether two arcs leaving one vertex the same way coincide (on the shorter)."""
+        if a.d == 0:
+            return np.abs(self.cz.norm(a.n - b.n, 0 * self.cz.u0)).max() <= SAME_TOL
+        t, z = a.at(0.5)
+        return np.abs(self.key(t, z) - self.key(t, b.state.solve(t))).max() <= SAME_TOL
+
+    def _walked(self, arc: Arc) -> bool:
+        return any(np.abs(k - arc.key).max() <= SAME_TOL for k in self.walked)
+
+    def _vertex(self, t, z) -> int | None:
+        """Index of a known vertex at (t, z), or None."""
+        k = self.key(t, z)
+        for i, (v, _) in enumerate(self.vertices):  # vertices of this path
+            if np.abs(v - k).max() <= SAME_TOL:
+                return i
+        return None
+
+    # ------------------------------------------------------------------ walking
+    def seed(self, t: float, z: np.ndarray, seed) -> None:
+        """Follow every curve through the solution (t, z) not yet on one."""
+        if self._vertex(t, z) is not None:
+            return
+        arcs, singular = self.arcs(t, z)
+        ci = self._curve(seed, t, z)
+        fresh = [a for a in arcs if not self._walked(a)]
+        regular = not singular and len(arcs) == 2 and len(fresh) == 2 and arcs[0].d * arcs[1].d < 0
+        if regular:  # a point inside a piece: one curve, walked back, turned, walked on
+            back, on = sorted(arcs, key=lambda a: a.d)
+            self.vertices.append((self.key(t, z), None))
+            self._run([(ci, back)])
+            self._turn(self.curves[ci])
+            self._run([(ci, on)])
+            return
+        event = self._event(None, arcs, singular, t, ci) if (singular or len(arcs) > 2) else None
+        self.vertices.append((self.key(t, z), event))
+        self._run(self._spread(ci, fresh, t, z, event))
+
+    def _curve(self, seed, t, z) -> int:
+        self.curves.append(Curve(seed))
+        self._add(len(self.curves) - 1, t, z, 0)
+        return len(self.curves) - 1
+
+    def _spread(self, ci, fresh, t, z, event) -> list[tuple[int, Arc]]:
+        """The current curve goes on along the first fresh arc, each other starts a curve."""
+        todo = [(ci, fresh[0])] if fresh else []
+        for arc in fresh[1:]:
+            cj = self._curve({"value": float(t), "event": event}, t, z)
+            if event is not None:
+                self.events[event].curves.append(cj)
+            todo.append((cj, arc))
+        return todo
+
+    def _run(self, todo: list[tuple[int, Arc]]) -> None:
+        while todo:  # spawned curves wait here until the current one ends
+            ci, arc = todo.pop(0)
+            todo += self._walk(ci, arc)
+
+    def _walk(self, ci: int, arc: Arc) -> list[tuple[int, Arc]]:
+        """Walk from arc to arc along curve ci; return the curves spawned on the way."""
+        curve, spawned = self.curves[ci], []
+        while arc is not None:
+            if self._walked(arc):
+                return spawned
+            self.pieces += 1
+            if self.pieces > self.max_pieces:
+                raise SolverError(f"the path needs more than {self.max_pieces} pieces; "
+                                  "shorten [path] range, or raise [path] max_pieces")
+            self.walked.append(arc.key)
+            st, k = arc.state, len(curve.pieces)
+            curve.pieces.append(self._piece(arc))
+            if arc.d:
+                lo, hi = sorted((arc.t0, arc.t1))
+                inside = self.samples[(self.samples > lo + MIN_STEP * self.track.length)
+                                      & (self.samples < hi - MIN_STEP * self.track.length)]
+                for t in inside[::arc.d]:
+                    self._add(ci, t, st.solve(t), k)
+            if arc.z1 is None:
+                self._unbounded(ci, arc)
+                return spawned
+            t, z = arc.t1, arc.z1
+            self._add(ci, t, z, k)
+            known = self._vertex(t, z)
+            if known is not None and self.vertices[known][1] is not None:
+                self.events[self.vertices[known][1]].curves.append(ci)
+            arcs, singular = self.arcs(t, z)
+            others = [a for a in arcs if np.abs(a.key - arc.key).max() > SAME_TOL]
+            fresh = [a for a in others if not self._walked(a)]
+            event = None if known is not None else self._event(arc, others, singular, t, ci)
+            if known is None:
+                self.vertices.append((self.key(t, z), event))
+            todo = self._spread(ci, fresh, t, z, event)
+            spawned += todo[1:]
+            arc = todo[0][1] if todo else None
+        return spawned
+
+    def _piece(self, arc: Arc) -> Piece:
+        st = arc.state
+        pos, neg = st.margins()
+        f = max(abs(self.track.friction(arc.t0)), abs(self.track.friction(arc.t1)))
+        margin = pos / f if pos is not None and f > 0 else None
+        return Piece([LABELS[c] for c in st.code], float(arc.t0), float(arc.t1), (pos, neg),
+                     margin)
+
+    def _add(self, ci: int, t: float, z: np.ndarray, piece: int) -> None:
+        self.curves[ci].points.append(self.point(t, z, piece))
+        at = np.flatnonzero(np.abs(self.samples - t) <= MIN_STEP * self.track.length)
+        for k in at:
+            self.hits.setdefault(int(k), []).append(self.key(t, z))
+
+    def _event(self, arc, others, singular, t, ci) -> int | None:
+        """Record the event at a vertex reached by ``arc`` (None: a seed) with the arcs
+        ``others`` leaving it; return its index (None: no event)."""
+        states = ([arc.state] if arc else []) + [a.state for a in others]
+        critical = None
+        if singular:
+            f = self.track.friction(t)
+            crit = singular[0].critical
+            critical = float(crit[np.argmin(np.abs(crit - f))])
+        if len(others) >= 2 + (arc is None):
+            kind = "branch"
+        elif len(others) == 1 and arc is not None:
+            o = others[0]
+            if o.state is arc.state and o.d == arc.d:
+                return None
+            kind = "fold" if arc.d and o.d and o.d != arc.d else "kink"
+        else:
+            return None
+        codes = np.array([s.code for s in states])
+        nodes = np.flatnonzero((codes != codes[0]).any(axis=0)).tolist()
+        if kind == "branch" and singular:
+            nodes = singular[0].slip.tolist()
+        self.events.append(Event(kind, float(t), nodes, critical, [ci],
+                                 [[LABELS[c] for c in s.code] for s in states]))
+        return len(self.events) - 1
+
+    def _unbounded(self, ci: int, arc: Arc) -> None:
+        if arc.why == "pole":
+            self.events.append(Event("branch", float(arc.t1), [], float(arc.t1), [ci],
+                                     [[LABELS[c] for c in arc.state.code]], unbounded=True))
+        else:
+            self.notes.append(f"a continuum at {arc.t0:.10g} is unbounded: the solutions "
+                              "grow without bound along it")
+
+    def _turn(self, curve: Curve) -> None:
+        """Reverse a curve walked backwards from its seed."""
+        n = len(curve.pieces)
+        curve.points.reverse()
+        for pt in curve.points:
+            pt.piece = n - 1 - pt.piece if n else 0
+        curve.pieces.reverse()
+        for pc in curve.pieces:
+            pc.start, pc.end = pc.end, pc.start

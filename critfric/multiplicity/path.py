@@ -1,0 +1,178 @@
+"""``critfric path``: the solution curves of the static problem (2.8) along the friction or
+the load, with their kinks, folds and branch points and the critical coefficients of the
+contact state of every piece.
+
+One factorization of K (the condensation onto Gamma_C, :mod:`.states`); everything after it
+lives on the 2p contact unknowns. The curves start from the solutions at the start of the
+range (every one, by enumeration, on problems with at most MAX_NODES contact nodes; else the
+Newton solution) and are followed piece by piece (:mod:`.explore`). On problems with at most
+MAX_NODES contact nodes every solution is also enumerated at each sample value, and one that
+no curve passes through seeds a curve of its own (an isola, or a pair born away from the
+start), so that the diagram holds every solution at every sample value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..case.schema import Case, from_dict, load_case
+from ..errors import CaseError
+from ..solve import prepare
+from ..solvers import coulomb
+from ..solvers.from_case import arc_length, case_problem
+from .arcs import Track
+from .enumeration import MAX_NODES, Enumerator
+from .explore import SAME_TOL, Explorer
+from .pathresult import PathResult
+from .states import Condensed
+
+MAX_CONTACT = 3000  # dense 2p x 2p condensed matrices: 2p = 6000 is 0.3 GB each
+MAX_STORED = 5 * 10**7  # sample values x contact nodes, the size of one curve's points
+
+
+def _options(case: Case) -> dict:
+    opts = dict(getattr(case, "path", None) or {})
+    opts.setdefault("parameter", "friction")
+    for key, default in (("start", "auto"), ("samples", 101), ("node", None), ("load", None),
+                         ("max_pieces", 20000)):
+        opts.setdefault(key, default)
+    span = opts.get("range")
+    if span is None:
+        raise CaseError("missing key: the range [a, b] of the parameter ([path] range, or "
+                        "--range A:B)", file=case.source, key="path.range")
+    a, b = map(float, span)
+    if not a < b or (opts["parameter"] == "friction" and a < 0):
+        raise CaseError(f"got {[a, b]}; allowed: two numbers [a, b] with a < b (a >= 0 for "
+                        "the friction)", file=case.source, key="path.range")
+    opts["range"] = (a, b)
+    return opts
+
+
+def path_case(case: Case | dict | str | Path, *, overrides: dict[str, Any] | None = None,
+              max_dofs: int | None = None, trust_geo: bool = False) -> PathResult:
+    """Follow the solution curves of a case's static problem along ``[path] parameter``."""
+    started = time.perf_counter()
+    if isinstance(case, dict):
+        case = from_dict(case, overrides=overrides)
+    elif not isinstance(case, Case):
+        case = load_case(case, overrides=overrides)
+    elif overrides:
+        case = case.with_overrides(overrides)
+    opts = _options(case)
+    a, b = opts["range"]
+    friction = None
+    if opts["parameter"] == "load":
+        friction = case.load["friction"]
+        if friction is None:
+            raise CaseError("a load path needs the friction coefficient; allowed: a number "
+                            ">= 0", file=case.source, key="load.friction")
+        if not opts["load"]:
+            raise CaseError("a load path needs the second load L1 of L0 + t L1; allowed: a "
+                            "table with traction, body_force, points or displacement",
+                            file=case.source, key="path.load")
+    prepared = prepare(case, max_dofs=max_dofs, trust_geo=trust_geo)
+    system = prepared.system
+    p = system.n_contact
+    _guard(case, p, opts)
+    problem = case_problem(case, system, friction=0.0)
+    cond, u0 = coulomb.condense(problem)
+    u0b = None
+    if opts["parameter"] == "load":
+        second = case_problem(case, system, load=opts["load"], key="path.load")
+        u0b = cond.solve(second.rhs)[cond.cdofs]
+    cz = Condensed.of(problem, (cond, u0), extra=() if u0b is None else (u0b,))
+    track = Track(cz, opts["parameter"], friction, u0b, (a, b))
+    samples = np.linspace(a, b, opts["samples"])
+    explorer = Explorer(track, samples, opts["max_pieces"])
+    notes = []
+    small = p <= MAX_NODES
+    enumerate_at = None
+    if small:
+        enum = Enumerator(None, cz)
+        enumerate_at = lambda t: _at(enum, cz, track, t)
+    if opts["start"] == "enumerate" and not small:
+        raise CaseError(f"exact enumeration needs at most {MAX_NODES} contact nodes, the "
+                        f"mesh has {p}; allowed: start = 'newton' or 'auto'",
+                        file=case.source, key="path.start")
+    if opts["start"] in ("enumerate", "auto") and small:
+        starts = enumerate_at(a)
+    else:
+        start = coulomb.solve(problem, track.friction(a), condensed=(cond, track.u0(a)))
+        starts = [np.concatenate([start.X, start.Y])]
+        if track.friction(a) > 0:
+            notes.append(f"the curves start from the Newton solution at {a:g}; other "
+                         f"solutions there, if any, are not followed (enumeration needs at "
+                         f"most {MAX_NODES} contact nodes)")
+    for z in starts:
+        explorer.seed(a, z, "start")
+    isolated = _complete(explorer, enumerate_at, samples) if small else []
+    if isolated:
+        notes.append(f"{len(isolated)} solution(s) found by the enumeration lie on no curve "
+                     "that could be followed: listed as isolated")
+    for e in explorer.events:
+        e.curves = sorted(set(e.curves))
+    node = opts["node"]
+    if node is not None and node >= p:
+        raise CaseError(f"got node {node}; allowed: a contact node index below {p}",
+                        file=case.source, key="path.node")
+    result = PathResult(
+        parameter=opts["parameter"], range=(a, b), curves=explorer.curves,
+        events=explorer.events, n_dofs=system.n_dofs, n_contact=p, seconds=0.0,
+        friction=friction, samples=samples, isolated=isolated,
+        s=arc_length(system, case.boundary["contact"]),
+        node=node if node is not None else _moving(explorer), notes=notes + explorer.notes,
+        case=case, mesh=prepared.mesh, contact_nodes=system.nodes)
+    result.seconds = time.perf_counter() - started
+    return result
+
+
+def _guard(case: Case, p: int, opts: dict) -> None:
+    if p > MAX_CONTACT:
+        raise CaseError(f"the mesh has {p} contact nodes; a path keeps dense {2 * p} x {2 * p} "
+                        f"matrices, allowed up to {MAX_CONTACT} contact nodes: use a coarser "
+                        "mesh on Gamma_C", file=case.source, key="mesh.size")
+    if p * opts["samples"] > MAX_STORED:
+        raise CaseError(f"got {opts['samples']} samples for {p} contact nodes: each curve "
+                        f"would hold {p * opts['samples']} values; allowed: samples x contact "
+                        f"nodes up to {MAX_STORED}", file=case.source, key="path.samples")
+
+
+def _at(enum: Enumerator, cz: Condensed, track: Track, t: float) -> list[np.ndarray]:
+    """Every solution at parameter t (the continua by a point of each), as forces z."""
+    here = dataclasses.replace(cz, u0=track.u0(t))
+    enum.cz, enum.u0 = here, here.u0
+    found = enum(track.friction(t))
+    zs = [np.concatenate([s.X, s.Y]) for s in found.solutions]
+    for br in found.branches:
+        ends = [e for e in (br.ends or []) if e is not None] or [br.point]
+        zs += [np.concatenate([e.X, e.Y]) for e in ends]
+    return zs
+
+
+def _complete(explorer: Explorer, enumerate_at, samples) -> list:
+    """Seed a curve from every enumerated solution no curve passes through; return those
+    that still lie on none, as (value, PathPoint)."""
+    missing = []
+    for k, t in enumerate(samples):  # every sample value: at most a few solutions each
+        for z in enumerate_at(t):
+            if not _on_curve(explorer, k, t, z):
+                explorer.seed(float(t), z, {"value": float(t)})
+                if not _on_curve(explorer, k, t, z):
+                    missing.append((float(t), explorer.point(t, z, 0)))
+    return missing
+
+
+def _on_curve(explorer: Explorer, k: int, t: float, z: np.ndarray) -> bool:
+    key = explorer.key(t, z)
+    return any(np.abs(h - key).max() <= 10 * SAME_TOL for h in explorer.hits.get(k, []))
+
+
+def _moving(explorer: Explorer) -> int:
+    """The contact node whose tangential displacement varies most over the curves."""
+    Ut = np.array([pt.Ut for c in explorer.curves for pt in c.points])
+    return int(np.argmax(np.ptp(Ut, axis=0))) if len(Ut) else 0
