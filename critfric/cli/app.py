@@ -31,10 +31,15 @@ from .failures import reported, say, set_verbosity, verbosity
 
 
 def _table(rows: list[dict]) -> str:
-    static = [r for r in rows if r.get("kind") != "stability"]
+    static = [r for r in rows if r.get("kind") not in ("stability", "path")]
     stability = [r for r in rows if r.get("kind") == "stability"]
+    paths = [r for r in rows if r.get("kind") == "path"]
     parts = ([_static_table(static)] if static else []) + (
         [_stability_table(stability)] if stability else [])
+    if paths:
+        from ..files.pathfile import path_table
+
+        parts.append(path_table(paths))
     return "\n\n".join(parts)
 
 

@@ -29,7 +29,14 @@ STABILITY_ATTRS = {"nu": "float", "E": "float", "density": "float", "h": "float"
                    "warnings": "texts", "notes": "texts",
                    **{f"{what}_{d}": "number" for what in ("flutter", "divergence")
                       for d in ("positive", "negative")}}
-ATTRS = {"solve": SOLVE_ATTRS, "sweep": SWEEP_ATTRS, "stability": STABILITY_ATTRS}
+PATH_ATTRS = {"case_name": "str", "case_toml": "str", "parameter": "str", "range": "range",
+              "friction": "number", "node": "int", "n_dofs": "int", "n_contact": "int",
+              "seconds": "float", "notes": "texts", "counts": "json"}
+ATTRS = {"solve": SOLVE_ATTRS, "sweep": SWEEP_ATTRS, "stability": STABILITY_ATTRS,
+         "path": PATH_ATTRS}
+PARAMETERS = ("friction", "load")  # as critfric.multiplicity.pathresult
+EVENT_KINDS = ("kink", "fold", "branch")
+POINT_VALUES = ("Un", "Ut", "X", "Y")  # (n, p) datasets of a path file's points
 
 
 def check(f: h5py.File, kind: str, path: Path) -> None:
@@ -61,13 +68,10 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
                       "holds")
         return obj[()]
 
-    if kind in ("solve", "stability"):
-        points = dataset("mesh/points", "f", 2, 2)
-        n = len(points)
-        spec = get_element(str(f.attrs["element"]))
-        arrays = {"mesh/points": points,
-                  "mesh/cells": dataset("mesh/cells", "iu", 2, spec.n_local),
-                  "mesh/contact_nodes": dataset("mesh/contact_nodes", "iu", 1)}
+    if kind == "path":
+        _check_path(f, dataset, bad)
+    elif kind in ("solve", "stability"):
+        n, arrays = _mesh(f, dataset, bad, str(f.attrs["element"]))
         if kind == "solve":
             arrays.update({"critical/positive": dataset("critical/positive", "f", 1),
                            "critical/negative": dataset("critical/negative", "f", 1),
@@ -88,10 +92,6 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
                     arrays[f"flutter/{d}/shape"] = dataset(f"flutter/{d}/shape", "f", 2, 2)
                     if len(arrays[f"flutter/{d}/shape"]) != n:
                         raise bad(f"dataset 'flutter/{d}/shape'", f"not {n} rows")
-        edges = f.get("mesh/edges")
-        for name in (edges.keys() if isinstance(edges, h5py.Group) else []):
-            arrays[f"mesh/edges/{name}"] = dataset(f"mesh/edges/{name}", "iu", 2,
-                                                   spec.facet_nodes)
         modes = f.get("modes")
         for name in (modes.keys() if isinstance(modes, h5py.Group) else []):
             arrays[f"modes/{name}/phi"] = dataset(f"modes/{name}/phi", "f", 2, 2)
@@ -100,14 +100,7 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
             if len(arrays[f"modes/{name}/phi"]) != n:
                 raise bad(f"dataset 'modes/{name}/phi'", f"{len(arrays[f'modes/{name}/phi'])} "
                           f"rows for {n} nodes")
-        for name, values in arrays.items():
-            if values.dtype.kind in "fc" and not np.all(np.isfinite(values)):
-                raise bad(f"dataset {name!r}", "values that are not finite")
-            if values.dtype.kind in "iu" and values.size and (values.min() < 0
-                                                              or values.max() >= n):
-                raise bad(f"dataset {name!r}", f"node indices outside [0, {n})")
-        if not len(arrays["mesh/cells"]):
-            raise bad("dataset 'mesh/cells'", "no cell")
+        _finite_indices(arrays, n, bad)
     else:
         count = int(f.attrs["count"])
         rows = None
@@ -126,6 +119,130 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
                 raise bad("dataset 'points/nu'", "values that are not finite")
 
 
+def _mesh(f: h5py.File, dataset, bad, element: str) -> tuple[int, dict]:
+    """The number of nodes and the /mesh arrays (points, cells, contact nodes, edges)."""
+    points = dataset("mesh/points", "f", 2, 2)
+    spec = get_element(element)
+    arrays = {"mesh/points": points,
+              "mesh/cells": dataset("mesh/cells", "iu", 2, spec.n_local),
+              "mesh/contact_nodes": dataset("mesh/contact_nodes", "iu", 1)}
+    edges = f.get("mesh/edges")
+    for name in (edges.keys() if isinstance(edges, h5py.Group) else []):
+        arrays[f"mesh/edges/{name}"] = dataset(f"mesh/edges/{name}", "iu", 2, spec.facet_nodes)
+    return len(points), arrays
+
+
+def _finite_indices(arrays: dict, n: int, bad) -> None:
+    """Floats finite, node indices in [0, n), at least one cell."""
+    for name, values in arrays.items():
+        if values.dtype.kind in "fc" and not np.all(np.isfinite(values)):
+            raise bad(f"dataset {name!r}", "values that are not finite")
+        if values.dtype.kind in "iu" and values.size and (values.min() < 0
+                                                          or values.max() >= n):
+            raise bad(f"dataset {name!r}", f"node indices outside [0, {n})")
+    if not len(arrays["mesh/cells"]):
+        raise bad("dataset 'mesh/cells'", "no cell")
+
+
+def _check_path(f: h5py.File, dataset, bad) -> None:
+    """The datasets of a path file (layout in files/pathfile.py): every curve's points and
+    pieces, the events, the isolated solutions, the arc lengths and the mesh if stored."""
+    p, node = int(f.attrs["n_contact"]), int(f.attrs["node"])
+    if p < 0 or not (0 <= node < p or node == p == 0):
+        raise bad("attribute 'node'", f"{node}, not a contact node of [0, {p})")
+    if _text(f.attrs["parameter"]) not in PARAMETERS:
+        raise bad("attribute 'parameter'", "not one of " + ", ".join(PARAMETERS))
+    finite = {"samples": dataset("samples", "f", 1)}
+    finite["contact/s"] = dataset("contact/s", "f", 1)
+    if len(finite["contact/s"]) != p:
+        raise bad("dataset 'contact/s'", f"{len(finite['contact/s'])} values for {p} contact "
+                  "nodes")
+
+    def rows(name: str, dtype: str, n: int, width=None) -> np.ndarray:
+        values = dataset(name, dtype, 1 if width is None else 2, width)
+        if len(values) != n:
+            raise bad(f"dataset {name!r}", f"{len(values)} rows, not {n}")
+        return values
+
+    def codes(name: str, n: int) -> None:
+        values, legend = rows(name, "iu", n, p), f[name].attrs.get("legend")
+        if not (isinstance(legend, np.ndarray) and legend.ndim == 1
+                and legend.dtype.kind in "OSU"):
+            raise bad(f"attribute 'legend' of dataset {name!r}", "missing or not texts")
+        if values.size and (values.min() < 0 or values.max() >= len(legend)):
+            raise bad(f"dataset {name!r}", f"codes outside [0, {len(legend)}) of its legend")
+
+    def points(group: str) -> int:
+        value = dataset(f"{group}/value", "f", 1)
+        finite[f"{group}/value"] = value
+        codes(f"{group}/status", len(value))
+        for name in POINT_VALUES:
+            finite[f"{group}/{name}"] = rows(f"{group}/{name}", "f", len(value), p)
+        return len(value)
+
+    def optional(name: str, n: int, infinite: bool = False) -> None:  # NaN: None
+        values = rows(name, "f", n)  # infinite: +inf allowed (a margin at friction 0)
+        if np.any(np.isneginf(values) if infinite else np.isinf(values)):
+            raise bad(f"dataset {name!r}", "infinite values")
+
+    curves = f.get("curves")
+    if not isinstance(curves, h5py.Group) or sorted(curves.keys(), key=lambda k: (
+            len(k), k)) != [str(i) for i in range(len(curves))]:
+        raise bad("group 'curves'", "missing, or not numbered 0, 1, ...")
+    for i in range(len(curves)):
+        g = f"curves/{i}"
+        if not _attr_ok(f[g].attrs.get("seed"), "json"):
+            raise bad(f"attribute 'seed' of group {g!r}", "missing or not JSON")
+        n = points(g)
+        k = len(dataset(f"{g}/pieces/start", "f", 1))
+        for name in ("start", "end"):
+            finite[f"{g}/pieces/{name}"] = rows(f"{g}/pieces/{name}", "f", k)
+        for name in ("critical_positive", "critical_negative", "margin"):
+            optional(f"{g}/pieces/{name}", k, infinite=name == "margin")
+        codes(f"{g}/pieces/state", k)
+        piece = rows(f"{g}/piece", "iu", n)
+        if piece.size and (piece.min() < 0 or piece.max() >= k):
+            raise bad(f"dataset '{g}/piece'", f"pieces outside [0, {k})")
+    finite["events/value"] = dataset("events/value", "f", 1)
+    m = len(finite["events/value"])
+    optional("events/critical", m)
+    rows("events/unbounded", "b", m)
+    if not all(_text(v) in EVENT_KINDS for v in rows("events/kind", "OSU", m)):
+        raise bad("dataset 'events/kind'", "not one of " + ", ".join(EVENT_KINDS))
+    for name, bound in (("nodes", p), ("curves", len(curves)), ("states", None)):
+        for text in rows(f"events/{name}", "OSU", m):
+            if not _json_list(_text(text), bound, p):
+                raise bad(f"dataset 'events/{name}'", "an entry that is not a JSON list of "
+                          + ("status lists" if bound is None else f"indices in [0, {bound})"))
+    points("isolated")
+    for name, values in finite.items():
+        if not np.all(np.isfinite(values)):
+            raise bad(f"dataset {name!r}", "values that are not finite")
+    if "mesh" in f:
+        element = f["mesh/cells"].attrs.get("element") if "mesh/cells" in f else None
+        if not _attr_ok(element, "element"):
+            raise bad("attribute 'element' of dataset 'mesh/cells'", "missing or unknown")
+        n, arrays = _mesh(f, dataset, bad, _text(element))
+        if len(arrays["mesh/contact_nodes"]) != p:
+            raise bad("dataset 'mesh/contact_nodes'", f"not {p} nodes")
+        _finite_indices(arrays, n, bad)
+
+
+def _json_list(text: str, bound: int | None, p: int) -> bool:
+    """A JSON list of indices in [0, bound), or (bound None) of lists of p status words."""
+    try:
+        value = json.loads(text)
+    except ValueError:
+        return False
+    if not isinstance(value, list):
+        return False
+    if bound is None:
+        return all(isinstance(s, list) and len(s) == p and all(isinstance(w, str) for w in s)
+                   for s in value)
+    return all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < bound
+               for v in value)
+
+
 def _text(value) -> str:
     return value.decode(errors="replace") if isinstance(value, bytes) else str(value)
 
@@ -139,6 +256,9 @@ def _attr_ok(value, want: str) -> bool:
         if isinstance(value, np.ndarray):
             return value.ndim == 1 and value.dtype.kind in "OSU"
         want = "json"
+    if want == "range":  # two finite floats
+        return isinstance(value, np.ndarray) and value.shape == (2,) \
+            and value.dtype.kind == "f" and bool(np.all(np.isfinite(value)))
     if want == "number":  # a float, NaN allowed (none)
         return isinstance(value, (float, np.floating)) and not math.isinf(float(value))
     if want == "int":

@@ -245,7 +245,7 @@ class State:
             fn = lambda x, j=j: self._g(t0 + d * x, parts)[j]
             try:
                 out.append(brentq(fn, max(lo, MIN_STEP * self.track.length), s[k],
-                                  xtol=ROOT_TOL * self.track.length, rtol=4e-16))
+                                  xtol=ROOT_TOL * self.track.length, rtol=1e-15))
             except ValueError:  # no sign change inside (an end is a root): take the end
                 out.append(s[k])
         return out

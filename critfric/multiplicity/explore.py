@@ -39,6 +39,14 @@ CODES = {"free": FREE, "stuck": STUCK, "slip+": SLIP_PLUS, "slip-": SLIP_MINUS, 
 
 
 @dataclass
+class Way:
+    """How a curve reaches a vertex: in ``state``, along d (+1/-1, 0 on a continuum)."""
+
+    state: State
+    d: int
+
+
+@dataclass
 class Arc:
     """A piece leaving a vertex: in ``state``, along the parameter (d = +1/-1) or along the
     null vector n at fixed t (d = 0); its end (t1, z1), z1 None where it is unbounded."""
@@ -76,6 +84,7 @@ class Explorer:
         self.events: list[Event] = []
         self.hits: dict[int, list[np.ndarray]] = {}  # sample index -> points on curves
         self.notes: list[str] = []
+        self.continua: list[tuple[np.ndarray, int]] = []  # null piece key -> branch event
         self.pieces = 0
 
     # ------------------------------------------------------------------ geometry
@@ -204,19 +213,35 @@ class Explorer:
         if self._vertex(t, z) is not None:
             return
         arcs, singular = self.arcs(t, z)
+        inside = (not singular and len(arcs) == 2 and arcs[0].state is arcs[1].state
+                  and arcs[0].d == -arcs[1].d)
+        back = min(arcs, key=lambda a: a.d) if inside else None
+        if back is not None and back.z1 is not None:  # inside a piece: start at its end
+            t, z = back.t1, back.z1
+            arcs, singular = self.arcs(t, z)
         ci = self._curve(seed, t, z)
         fresh = [a for a in arcs if not self._walked(a)]
-        regular = not singular and len(arcs) == 2 and len(fresh) == 2 and arcs[0].d * arcs[1].d < 0
-        if regular:  # a point inside a piece: one curve, walked back, turned, walked on
-            back, on = sorted(arcs, key=lambda a: a.d)
-            self.vertices.append((self.key(t, z), None))
-            self._run([(ci, back)])
+        if not singular and len(arcs) == 2 and len(fresh) == 2:  # one curve through it
+            first, then = fresh
+            event = self._event(Way(first.state, -first.d), [then], [], t, ci)
+            self.vertices.append((self.key(t, z), event))
+            self._run([(ci, first)])
             self._turn(self.curves[ci])
-            self._run([(ci, on)])
+            self._run([(ci, then)])
             return
-        event = self._event(None, arcs, singular, t, ci) if (singular or len(arcs) > 2) else None
+        event = self._event(None, arcs, singular, t, ci)
         self.vertices.append((self.key(t, z), event))
         self._run(self._spread(ci, fresh, t, z, event))
+
+    def finish(self) -> None:
+        """Drop the curves spawned at a branch point whose piece another curve walked first,
+        and renumber the events' curves."""
+        keep = [i for i, c in enumerate(self.curves)
+                if c.pieces or not (isinstance(c.seed, dict) and "event" in c.seed)]
+        new = {old: i for i, old in enumerate(keep)}
+        self.curves = [self.curves[i] for i in keep]
+        for e in self.events:
+            e.curves = sorted({new[c] for c in e.curves if c in new})
 
     def _curve(self, seed, t, z) -> int:
         self.curves.append(Curve(seed))
@@ -294,11 +319,21 @@ class Explorer:
         """Record the event at a vertex reached by ``arc`` (None: a seed) with the arcs
         ``others`` leaving it; return its index (None: no event)."""
         states = ([arc.state] if arc else []) + [a.state for a in others]
-        critical = None
-        if singular:
+        if singular:  # a continuum: one branch event for it, whichever end comes first
+            nulls = [a.key for a in ([arc] if isinstance(arc, Arc) else []) + others
+                     if a.d == 0]
+            for k, e in self.continua:
+                if any(np.abs(k - n).max() <= SAME_TOL for n in nulls):
+                    self.events[e].curves.append(ci)
+                    return e
             f = self.track.friction(t)
             crit = singular[0].critical
-            critical = float(crit[np.argmin(np.abs(crit - f))])
+            event = Event("branch", float(t), singular[0].slip.tolist(),
+                          float(crit[np.argmin(np.abs(crit - f))]), [ci],
+                          [[LABELS[c] for c in s.code] for s in states])
+            self.events.append(event)
+            self.continua += [(n, len(self.events) - 1) for n in nulls]
+            return len(self.events) - 1
         if len(others) >= 2 + (arc is None):
             kind = "branch"
         elif len(others) == 1 and arc is not None:
@@ -310,9 +345,7 @@ class Explorer:
             return None
         codes = np.array([s.code for s in states])
         nodes = np.flatnonzero((codes != codes[0]).any(axis=0)).tolist()
-        if kind == "branch" and singular:
-            nodes = singular[0].slip.tolist()
-        self.events.append(Event(kind, float(t), nodes, critical, [ci],
+        self.events.append(Event(kind, float(t), nodes, None, [ci],
                                  [[LABELS[c] for c in s.code] for s in states]))
         return len(self.events) - 1
 

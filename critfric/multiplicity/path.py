@@ -22,6 +22,7 @@ import numpy as np
 
 from ..case.schema import Case, from_dict, load_case
 from ..errors import CaseError
+from ..fem.static import StaticProblem
 from ..solve import prepare
 from ..solvers import coulomb
 from ..solvers.from_case import arc_length, case_problem
@@ -77,58 +78,67 @@ def path_case(case: Case | dict | str | Path, *, overrides: dict[str, Any] | Non
                             file=case.source, key="path.load")
     prepared = prepare(case, max_dofs=max_dofs, trust_geo=trust_geo)
     system = prepared.system
-    p = system.n_contact
-    _guard(case, p, opts)
+    _guard(case, system.n_contact, opts)
+    if opts["node"] is not None and opts["node"] >= system.n_contact:
+        raise CaseError(f"got node {opts['node']}; allowed: a contact node index below "
+                        f"{system.n_contact}", file=case.source, key="path.node")
+    if opts["start"] == "enumerate" and system.n_contact > MAX_NODES:
+        raise CaseError(f"exact enumeration needs at most {MAX_NODES} contact nodes, the "
+                        f"mesh has {system.n_contact}; allowed: start = 'newton' or 'auto'",
+                        file=case.source, key="path.start")
     problem = case_problem(case, system, friction=0.0)
-    cond, u0 = coulomb.condense(problem)
-    u0b = None
+    second = None
     if opts["parameter"] == "load":
         second = case_problem(case, system, load=opts["load"], key="path.load")
-        u0b = cond.solve(second.rhs)[cond.cdofs]
+    result = follow(problem, opts["parameter"], (a, b), second=second, friction=friction,
+                    samples=opts["samples"], start=opts["start"],
+                    max_pieces=opts["max_pieces"])
+    result.s = arc_length(system, case.boundary["contact"])
+    result.node = opts["node"] if opts["node"] is not None else result.node
+    result.case, result.mesh, result.contact_nodes = case, prepared.mesh, system.nodes
+    result.seconds = time.perf_counter() - started
+    return result
+
+
+def follow(problem: StaticProblem, parameter: str, span: tuple[float, float], *,
+           second: StaticProblem | None = None, friction: float | None = None,
+           samples: int = 101, start: str = "auto", max_pieces: int = 20000) -> PathResult:
+    """Every solution curve of a static problem along the friction (its load fixed) or the
+    load factor t of L0 + t L1 (``second``: the problem of L1, whose U^r is ignored; the
+    friction fixed), over ``span``."""
+    started = time.perf_counter()
+    a, b = span
+    cond, u0 = coulomb.condense(problem)
+    u0b = None if second is None else cond.solve(second.rhs)[cond.cdofs]
     cz = Condensed.of(problem, (cond, u0), extra=() if u0b is None else (u0b,))
-    track = Track(cz, opts["parameter"], friction, u0b, (a, b))
-    samples = np.linspace(a, b, opts["samples"])
-    explorer = Explorer(track, samples, opts["max_pieces"])
-    notes = []
-    small = p <= MAX_NODES
-    enumerate_at = None
-    if small:
+    track = Track(cz, parameter, friction, u0b, (a, b))
+    values = np.linspace(a, b, samples)
+    explorer = Explorer(track, values, max_pieces)
+    p, notes, enumerate_at = cz.p, [], None
+    if p <= MAX_NODES:
         enum = Enumerator(None, cz)
         enumerate_at = lambda t: _at(enum, cz, track, t)
-    if opts["start"] == "enumerate" and not small:
-        raise CaseError(f"exact enumeration needs at most {MAX_NODES} contact nodes, the "
-                        f"mesh has {p}; allowed: start = 'newton' or 'auto'",
-                        file=case.source, key="path.start")
-    if opts["start"] in ("enumerate", "auto") and small:
+    if start != "newton" and enumerate_at is not None:
         starts = enumerate_at(a)
     else:
-        start = coulomb.solve(problem, track.friction(a), condensed=(cond, track.u0(a)))
-        starts = [np.concatenate([start.X, start.Y])]
+        first = coulomb.solve(problem, track.friction(a), condensed=(cond, track.u0(a)))
+        starts = [np.concatenate([first.X, first.Y])]
         if track.friction(a) > 0:
             notes.append(f"the curves start from the Newton solution at {a:g}; other "
                          f"solutions there, if any, are not followed (enumeration needs at "
                          f"most {MAX_NODES} contact nodes)")
     for z in starts:
         explorer.seed(a, z, "start")
-    isolated = _complete(explorer, enumerate_at, samples) if small else []
+    isolated = _complete(explorer, enumerate_at, values) if enumerate_at else []
     if isolated:
         notes.append(f"{len(isolated)} solution(s) found by the enumeration lie on no curve "
                      "that could be followed: listed as isolated")
-    for e in explorer.events:
-        e.curves = sorted(set(e.curves))
-    node = opts["node"]
-    if node is not None and node >= p:
-        raise CaseError(f"got node {node}; allowed: a contact node index below {p}",
-                        file=case.source, key="path.node")
-    result = PathResult(
-        parameter=opts["parameter"], range=(a, b), curves=explorer.curves,
-        events=explorer.events, n_dofs=system.n_dofs, n_contact=p, seconds=0.0,
-        friction=friction, samples=samples, isolated=isolated,
-        s=arc_length(system, case.boundary["contact"]),
-        node=node if node is not None else _moving(explorer), notes=notes + explorer.notes,
-        case=case, mesh=prepared.mesh, contact_nodes=system.nodes)
-    result.seconds = time.perf_counter() - started
-    return result
+    explorer.finish()
+    return PathResult(
+        parameter=parameter, range=(a, b), curves=explorer.curves, events=explorer.events,
+        n_dofs=problem.K.shape[0], n_contact=p, seconds=time.perf_counter() - started,
+        friction=friction, samples=values, isolated=isolated, node=_moving(explorer),
+        notes=notes + explorer.notes)
 
 
 def _guard(case: Case, p: int, opts: dict) -> None:

@@ -6,6 +6,7 @@ with the h -> 0 limits: Figs. 4 and 7) and ``s_convergence.png`` (coefficient vs
 Solve file ``r.h5``: ``r_deformed.png`` (the eigenfunction Phi, Fig. 8), ``r_von_mises.png``
 (von Mises stress of Phi, Fig. 9), ``r_contact_forces.png`` (theta_n, theta_t along Gamma_C)
 and ``r_spectrum.png`` (eigenvalues in the complex plane, real critical ones marked).
+Stability and path files: see plots/stability.py and plots/path.py (``p_diagram.png``).
 """
 
 from __future__ import annotations
@@ -36,8 +37,8 @@ _STYLE = {"P1": ("tab:blue", "o"), "P2": ("tab:orange", "s"), "Q1": ("tab:green"
 
 def plot_file(path: Path | str, *, nu: float | None = None,
               formats: tuple[str, ...] = ("png",)) -> list[Path]:
-    """Write the figures of a sweep or solve file next to it, in each of ``formats`` (png,
-    pdf, svg); return their paths."""
+    """Write the figures of a sweep, solve, stability or path file next to it, in each of
+    ``formats`` (png, pdf, svg); return their paths."""
     path = Path(path)
     bad = [f for f in formats if f not in FORMATS]
     if bad or not formats:
@@ -51,8 +52,8 @@ def plot_file(path: Path | str, *, nu: float | None = None,
 
 
 def figures(path: Path | str, *, nu: float | None = None) -> dict[str, Figure]:
-    """The figures of a sweep or solve file, by name, as matplotlib Figures to show, compose
-    or save (:func:`plot_file` saves them next to the file)."""
+    """The figures of a sweep, solve, stability or path file, by name, as matplotlib Figures
+    to show, compose or save (:func:`plot_file` saves them next to the file)."""
     path = Path(path)
     try:
         with h5py.File(path, "r") as f:
@@ -67,7 +68,12 @@ def figures(path: Path | str, *, nu: float | None = None) -> dict[str, Figure]:
         from .stability import stability_figures
 
         return stability_figures(path)
-    raise CaseError("is not a sweep, solve or stability file of critfric", file=str(path))
+    if kind == "path":
+        from .path import path_figures
+
+        return path_figures(path)
+    raise CaseError("is not a sweep, solve, stability or path file of critfric",
+                    file=str(path))
 
 
 FORMATS = ("png", "pdf", "svg")
