@@ -166,10 +166,15 @@ def _at(enum: Enumerator, cz: Condensed, track: Track, t: float) -> list[np.ndar
 
 def _complete(explorer: Explorer, enumerate_at, samples) -> list:
     """Seed a curve from every enumerated solution no curve passes through; return those
-    that still lie on none, as (value, PathPoint)."""
-    missing = []
+    that still lie on none, as (value, PathPoint). A solution of the enumeration (products
+    Y w within its tolerance) that is not one to CONSISTENT_TOL in each value is passed
+    over."""
+    missing, track = [], explorer.track
     for k, t in enumerate(samples):  # every sample value: at most a few solutions each
         for z in enumerate_at(t):
+            exact = explorer.cz.consistent(z, track.friction(t), track.u0(t)).any(axis=1)
+            if not exact.all():  # within the enumeration's tolerance, not a solution to ours
+                continue
             if not _on_curve(explorer, k, t, z):
                 explorer.seed(float(t), z, {"value": float(t)})
                 if not _on_curve(explorer, k, t, z):
