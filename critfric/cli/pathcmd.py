@@ -20,6 +20,9 @@ RANGE_ALLOWED = ("A:B, two plain (ASCII) numbers with A < B (the case key path.r
                  "friction path: 0 <= A), e.g. 0:3")
 
 
+SHOWN = 12  # events and curves printed (folds and branch points first); --json has all
+
+
 def parse_range(text: str | None) -> list[float] | None:
     """--range A:B -> [A, B] (the schema checks A < B, and 0 <= A for a friction path)."""
     if text is None:
@@ -116,10 +119,16 @@ def path(
                    f"{result.n_contact} contact nodes   {result.seconds:.2f} s")
         typer.echo(f"parameter  {name} over [{a:.10g}, {b:.10g}]{fixed}")
         typer.echo("found      " + ", ".join(f"{n} {k}" for k, n in result.counts().items()))
-        for e in result.events:
+        shown = [e for e in result.events if e.kind != "kink"] or result.events
+        for e in shown[:SHOWN]:
             critical = "" if e.critical is None else f"   critical {e.critical:.10g}"
             typer.echo(f"{e.kind:<10} at {e.value:.10g}   nodes {fmt_values(e.nodes, 8)}"
                        + critical + ("   (reached at infinity)" if e.unbounded else ""))
-        for i, c in enumerate(result.curves):
+        if len(result.events) > len(shown[:SHOWN]):
+            typer.echo(f"           ... {len(result.events) - len(shown[:SHOWN])} more events "
+                       "(--json lists them all)")
+        for i, c in enumerate(result.curves[:SHOWN]):
             typer.echo(f"curve {i:<4} from {_seed(c.seed)}: {len(c.pieces)} pieces, "
                        f"{name} {_covered(c)}")
+        if len(result.curves) > SHOWN:
+            typer.echo(f"           ... {len(result.curves) - SHOWN} more curves")

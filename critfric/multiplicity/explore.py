@@ -38,6 +38,28 @@ PROBE = 1e-6
 CODES = {"free": FREE, "stuck": STUCK, "slip+": SLIP_PLUS, "slip-": SLIP_MINUS, "cone": STUCK}
 
 
+class Points:
+    """Points (scaled keys, the parameter first) with a value each, found again within
+    SAME_TOL; bucketed by the parameter, so a look-up costs the few points near it."""
+
+    WIDTH = 1e-6  # bucket width in the scaled parameter (> SAME_TOL)
+
+    def __init__(self):
+        self.buckets: dict[int, list[tuple[np.ndarray, object]]] = {}
+
+    def find(self, key: np.ndarray):
+        """(value,) of a point within SAME_TOL of key, or None."""
+        b = int(np.floor(key[0] / self.WIDTH))
+        for near in (b - 1, b, b + 1):  # the point's bucket and its neighbours
+            for k, value in self.buckets.get(near, ()):
+                if np.abs(k - key).max() <= SAME_TOL:
+                    return (value,)
+        return None
+
+    def add(self, key: np.ndarray, value=None) -> None:
+        self.buckets.setdefault(int(np.floor(key[0] / self.WIDTH)), []).append((key, value))
+
+
 @dataclass
 class Way:
     """How a curve reaches a vertex: in ``state``, along d (+1/-1, 0 on a continuum)."""
@@ -78,8 +100,8 @@ class Explorer:
         self.track, self.cz, self.samples = track, track.cz, samples
         self.max_pieces = max_pieces
         self.states: dict[bytes, State] = {}
-        self.walked: list[np.ndarray] = []
-        self.vertices: list[tuple[np.ndarray, int | None]] = []
+        self.walked = Points()  # midpoints of the pieces walked
+        self.vertices = Points()  # vertices reached, with their event (or None)
         self.curves: list[Curve] = []
         self.events: list[Event] = []
         self.hits: dict[int, list[np.ndarray]] = {}  # sample index -> points on curves
@@ -197,15 +219,11 @@ class Explorer:
         return np.abs(self.key(t, z) - self.key(t, b.state.solve(t))).max() <= SAME_TOL
 
     def _walked(self, arc: Arc) -> bool:
-        return any(np.abs(k - arc.key).max() <= SAME_TOL for k in self.walked)
+        return self.walked.find(arc.key) is not None
 
-    def _vertex(self, t, z) -> int | None:
-        """Index of a known vertex at (t, z), or None."""
-        k = self.key(t, z)
-        for i, (v, _) in enumerate(self.vertices):  # vertices of this path
-            if np.abs(v - k).max() <= SAME_TOL:
-                return i
-        return None
+    def _vertex(self, t, z) -> tuple | None:
+        """(event or None,) of a known vertex at (t, z), or None if it is new."""
+        return self.vertices.find(self.key(t, z))
 
     # ------------------------------------------------------------------ walking
     def seed(self, t: float, z: np.ndarray, seed) -> None:
@@ -224,13 +242,13 @@ class Explorer:
         if not singular and len(arcs) == 2 and len(fresh) == 2:  # one curve through it
             first, then = fresh
             event = self._event(Way(first.state, -first.d), [then], [], t, ci)
-            self.vertices.append((self.key(t, z), event))
+            self.vertices.add(self.key(t, z), event)
             self._run([(ci, first)])
             self._turn(self.curves[ci])
             self._run([(ci, then)])
             return
         event = self._event(None, arcs, singular, t, ci)
-        self.vertices.append((self.key(t, z), event))
+        self.vertices.add(self.key(t, z), event)
         self._run(self._spread(ci, fresh, t, z, event))
 
     def finish(self) -> None:
@@ -273,7 +291,7 @@ class Explorer:
             if self.pieces > self.max_pieces:
                 raise SolverError(f"the path needs more than {self.max_pieces} pieces; "
                                   "shorten [path] range, or raise [path] max_pieces")
-            self.walked.append(arc.key)
+            self.walked.add(arc.key)
             st, k = arc.state, len(curve.pieces)
             curve.pieces.append(self._piece(arc))
             if arc.d:
@@ -288,14 +306,14 @@ class Explorer:
             t, z = arc.t1, arc.z1
             self._add(ci, t, z, k)
             known = self._vertex(t, z)
-            if known is not None and self.vertices[known][1] is not None:
-                self.events[self.vertices[known][1]].curves.append(ci)
+            if known is not None and known[0] is not None:
+                self.events[known[0]].curves.append(ci)
             arcs, singular = self.arcs(t, z)
             others = [a for a in arcs if np.abs(a.key - arc.key).max() > SAME_TOL]
             fresh = [a for a in others if not self._walked(a)]
             event = None if known is not None else self._event(arc, others, singular, t, ci)
             if known is None:
-                self.vertices.append((self.key(t, z), event))
+                self.vertices.add(self.key(t, z), event)
             todo = self._spread(ci, fresh, t, z, event)
             spawned += todo[1:]
             arc = todo[0][1] if todo else None

@@ -34,6 +34,7 @@ from .states import Condensed
 
 MAX_CONTACT = 3000  # dense 2p x 2p condensed matrices: 2p = 6000 is 0.3 GB each
 MAX_STORED = 5 * 10**7  # sample values x contact nodes, the size of one curve's points
+ENUMERATED = 3 * 10**7  # sample values x 4^p contact states: about 4 minutes (8.4 us each)
 
 
 def _options(case: Case) -> dict:
@@ -146,6 +147,12 @@ def _guard(case: Case, p: int, opts: dict) -> None:
         raise CaseError(f"the mesh has {p} contact nodes; a path keeps dense {2 * p} x {2 * p} "
                         f"matrices, allowed up to {MAX_CONTACT} contact nodes: use a coarser "
                         "mesh on Gamma_C", file=case.source, key="mesh.size")
+    if p <= MAX_NODES and opts["samples"] * 4**p > ENUMERATED:
+        most = ENUMERATED // 4**p
+        raise CaseError(f"got {opts['samples']} samples: with {p} contact nodes every solution "
+                        f"is enumerated at each ({4**p} contact states), about "
+                        f"{opts['samples'] * 4**p * 8.4e-6 / 60:.0f} minutes; allowed: at most "
+                        f"{most} samples", file=case.source, key="path.samples")
     if p * opts["samples"] > MAX_STORED:
         raise CaseError(f"got {opts['samples']} samples for {p} contact nodes: each curve "
                         f"would hold {p * opts['samples']} values; allowed: samples x contact "
