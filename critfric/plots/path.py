@@ -250,24 +250,37 @@ def _states(ax, data: dict) -> None:
 
 
 def _margins(ax, data: dict, colors) -> None:
-    drawn = False
+    """crit / friction along each piece: a hyperbola on a friction path, a constant on a load
+    path (where the friction is fixed)."""
+    drawn, values = False, []
+    along = data["parameter"] == "friction"
     for c, curve in enumerate(data["curves"]):
         for j, piece in enumerate(curve["pieces"]):
-            m = piece["margin"]
-            if m is None or not np.isfinite(m):
+            crit = piece["critical"]["positive"]
+            if crit is None or not np.isfinite(crit):
                 continue
             lo, hi = sorted((piece["start"], piece["end"]))
-            ax.hlines(m, lo, hi, color=colors[c][j], lw=3)
+            t = np.linspace(lo, hi, 50) if along else np.array([lo, hi])
+            f = t if along else np.full(2, data["friction"] or 0.0)
+            with np.errstate(divide="ignore"):
+                m = np.where(f > 0, crit / np.maximum(f, 1e-300), np.inf)
+            keep = np.isfinite(m)
+            if not keep.any():
+                continue
+            ax.plot(t[keep], m[keep], color=colors[c][j], lw=3)
             if lo == hi:
-                ax.plot([lo], [m], "o", color=colors[c][j], ms=4)
+                ax.plot([lo], [m[keep][0]], "o", color=colors[c][j], ms=4)
+            values += m[keep].tolist()
             drawn = True
     if not drawn:
         _note(ax, "no piece with a margin (no slipping piece, or no real positive critical "
                   "coefficient)")
     else:
         ax.axhline(1.0, color="k", lw=1, ls="--")
+        if max(values) > 30 * max(min(values), 1e-300):
+            ax.set_yscale("log")
     ax.set_title("Margin of each piece: its state's lowest positive critical coefficient over "
-                 "the largest friction on it\n(dashed: 1; below it the friction exceeds the "
-                 "state's critical coefficient)", fontsize=8)
+                 "the friction\n(dashed: 1; below it the friction exceeds the state's critical "
+                 "coefficient)", fontsize=8)
     ax.set_ylabel("margin")
     ax.grid(alpha=0.3)
