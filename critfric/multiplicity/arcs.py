@@ -12,8 +12,8 @@ In a state (:mod:`.states`) the solution is z(t) = A(t)^-1 b(t):
   g_j(f) = a_j + f b_j - f (P_j + f Q_j)^T y(f), and its roots are the finite eigenvalues of
   a linear pencil of size 2 p0 + 1 (y, w = f y, 1): exact, for states with at most
   EXACT_SLIP slipping nodes; above that the roots are bracketed on a grid (GRID points, and
-  points that close in geometrically on every pole near the interval) and found by Brent's
-  method to ROOT_TOL.
+  points that close in geometrically on both ends of the interval and on every pole near it)
+  and found by Brent's method to ROOT_TOL.
 
 A continuum (a *null* arc) is z + c n at fixed t, n a null vector of a singular A: its
 inequalities are affine in c.
@@ -37,11 +37,12 @@ from .states import SLIP_MINUS, SLIP_PLUS, Condensed
 
 EXACT_SLIP = 16
 GRID = 64
-ROOT_TOL = 1e-12
+ROOT_TOL = 1e-13
 MIN_STEP = 1e-10
 FEASIBLE_TOL = 1e-9
 SINGULAR_TOL = 1e-9
 REAL_TOL = 1e-8
+NOISE = 1e-12  # scaled inequality values within this of 0 are 0 (bracketing grid)
 
 
 class Track:
@@ -82,7 +83,7 @@ class State:
         real = (np.abs(lam.imag) <= REAL_TOL * np.abs(lam)) & (np.abs(lam) > INFINITE_TOL)
         self.critical = np.sort(-1.0 / lam[real].real)
         self.poles = -1.0 / lam[np.abs(lam) > INFINITE_TOL]  # complex too: for the grid
-        self.lu = None
+        self.lu, self._rows = None, None
         if track.parameter == "load" and self.singular_at(track.fixed) is None:
             self.lu = la.lu_factor(self.A(track.fixed), check_finite=False)
 
@@ -148,11 +149,8 @@ class State:
         g0 = self.slack(t0, z0)
         slope = d * self.cz.slack(self.code, self.track.fixed, zb, u0=self.track.u0b,
                                   Ur=np.zeros(self.cz.p))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s = np.where(slope > 0, -g0 / slope, np.inf)
-        s = s[s > MIN_STEP * self.track.length]
         end = abs(lim - t0)
-        first = s.min(initial=np.inf)
+        first = first_root(g0, slope, self.track.length)
         return (first, "row") if first < end else (end, "end")
 
     def solve_direction(self) -> np.ndarray:
@@ -174,19 +172,27 @@ class State:
         return end, "end"
 
     def _parts(self, t0: float):
-        """The rows as g(f) = a + f b - f (P + f Q) y(f), (I + f H) y = q."""
-        z0 = la.lu_solve(self.lu0, self.b(t0))
-        cz, u0 = self.cz, self.track.u0(t0)
-        a = cz.slack(self.code, 0.0, z0, u0=u0)
-        linear = lambda f: cz.slack(self.code, f, self.Z1.T, u0=np.zeros_like(z0),
-                                    Ur=np.zeros(cz.p)).T
-        P = linear(0.0)
-        return a, cz.slack(self.code, 1.0, z0, u0=u0) - a, P, linear(1.0) - P, self.Ft @ z0
+        """The rows as g(f) = a + f b - f (P + f Q) y(f), (I + f H) y = q: the same at every
+        t0 of a friction path (the load is fixed), so made once per state."""
+        if self._rows is None:
+            z0 = la.lu_solve(self.lu0, self.b(t0))
+            cz, u0 = self.cz, self.track.u0(t0)
+            a = cz.slack(self.code, 0.0, z0, u0=u0)
+            linear = lambda f: cz.slack(self.code, f, self.Z1.T, u0=np.zeros_like(z0),
+                                        Ur=np.zeros(cz.p)).T
+            P = linear(0.0)
+            self._rows = (a, cz.slack(self.code, 1.0, z0, u0=u0) - a, P, linear(1.0) - P,
+                          self.Ft @ z0)
+        return self._rows
 
     def _g(self, f, parts):
+        """The rows at friction f: (m,) for a number, (n, m) for n values at once."""
         a, b, P, Q, q = parts
-        y = la.solve(np.eye(len(q)) + f * self.H, q, check_finite=False)
-        return a + f * b - f * ((P + f * Q) @ y)
+        F = np.atleast_1d(np.asarray(f, dtype=float))
+        y = np.linalg.solve(np.eye(len(q)) + F[:, None, None] * self.H,
+                            np.broadcast_to(q, (len(F), len(q)))[..., None])[..., 0]
+        g = a + F[:, None] * b - F[:, None] * (y @ P.T + F[:, None] * (y @ Q.T))
+        return g if np.ndim(f) else g[0]
 
     def _roots(self, t0: float, d: int, upto: float) -> float:
         """The first s in (MIN_STEP, upto) with a row g_j(t0 + d s) = 0 (inf if none)."""
@@ -194,12 +200,9 @@ class State:
         p0, L = len(self.slip), self.track.length
         if p0 == 0:  # nothing depends on the friction but the stuck cones: affine rows
             a, b = parts[0], parts[1]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s = np.where(d * b != 0, -(a + t0 * b) / (d * b), np.inf)
-            s = s[(s > MIN_STEP * L) & (s < upto)]
-            return s.min(initial=np.inf)
+            return first_root(a + t0 * b, d * b, L)
         probes = t0 + d * upto * np.array([0.2113, 0.5, 0.7887])
-        scale = np.abs(np.stack([self._g(f, parts) for f in probes])).max(axis=0)
+        scale = np.abs(self._g(probes, parts)).max(axis=0)
         live = np.flatnonzero(scale > FEASIBLE_TOL)  # rows not identically zero
         if p0 <= EXACT_SLIP:
             found = self._pencil_roots(parts, live, t0, d, upto)
@@ -212,42 +215,69 @@ class State:
         p0, L = len(q), self.track.length
         I, Z = np.eye(p0), np.zeros((p0, p0))
         out = []
+        col, row = np.zeros((p0, 1)), np.zeros((1, p0))
+        rows, cands = [], []
         for j in live:  # loop over the rows of one state, each a pencil of size 2 p0 + 1
-            M0 = np.block([[I, Z, -q[:, None]], [Z, I, np.zeros((p0, 1))],
-                           [np.zeros((1, p0)), -P[j][None], np.array([[a[j]]])]])
-            M1 = np.block([[self.H, Z, np.zeros((p0, 1))], [-I, Z, np.zeros((p0, 1))],
-                           [np.zeros((1, p0)), -Q[j][None], np.array([[b[j]]])]])
+            if Q[j].any() or b[j]:  # (y, f y, 1)
+                M0 = np.block([[I, Z, -q[:, None]], [Z, I, col],
+                               [row, -P[j][None], np.full((1, 1), a[j])]])
+                M1 = np.block([[self.H, Z, col], [-I, Z, col],
+                               [row, -Q[j][None], np.full((1, 1), b[j])]])
+            else:  # no f^2 term: (y, 1), size p0 + 1
+                M0 = np.block([[I, -q[:, None]], [row, np.full((1, 1), a[j])]])
+                M1 = np.block([[self.H, col], [-P[j][None], np.zeros((1, 1))]])
             with np.errstate(all="ignore"):
-                f = la.eigvals(M0, -M1)
+                f = la.eigvals(M0, -M1, check_finite=False)
             f = f[np.isfinite(f) & (np.abs(f.imag) <= REAL_TOL * np.maximum(np.abs(f), 1))].real
             s = d * (f - t0)
-            for si in s[(s > MIN_STEP * L) & (s < upto)]:  # a few candidate roots
-                fi = t0 + d * si
-                if self.singular_at(fi) is None and abs(self._g(fi, parts)[j]) <= 1e-6:
-                    out.append(si)
-        return out
+            s = s[(s > MIN_STEP * L) & (s < upto)]
+            rows += [j] * len(s)
+            cands += s.tolist()
+        if not cands:
+            return []
+        rows, cands = np.array(rows), np.array(cands)
+        at = self._g(t0 + d * cands, parts)[np.arange(len(rows)), rows]
+        half = self._g(t0 + d * cands / 2, parts)[np.arange(len(rows)), rows]
+        regular = np.array([self.singular_at(t0 + d * c) is None for c in cands])
+        ok = regular & (np.abs(at) <= 1e-6) & (half < -NOISE)  # a root, crossed from below
+        first = cands[ok].min(initial=np.inf)  # only the first root (and its near ties) matter
+        near = ok & (cands <= first + 1e-6 * max(first, L))
+        return [self._polish(parts, j, t0, d, c) for j, c in zip(rows[near], cands[near])]
+
+    def _polish(self, parts, j, t0, d, s) -> float:
+        """An eigenvalue root of row j made exact to ROOT_TOL by Brent's method on the row."""
+        fn = lambda x: self._g(t0 + d * x, parts)[j]
+        w = 1e-8 * max(s, self.track.length)
+        lo, hi = max(s - w, 0.5 * s), s + w
+        if fn(lo) < 0 < fn(hi):
+            return brentq(fn, lo, hi, xtol=ROOT_TOL * self.track.length, rtol=1e-15)
+        return s
 
     def _grid_roots(self, parts, live, t0, d, upto) -> list[float]:
-        s = np.linspace(0.0, upto, GRID + 1)[1:]
-        for pole in self.poles:  # close in on every pole near the interval
+        ends = np.geomspace(1e-13, 1e-2, 12)  # close in on both ends of the interval
+        s = np.concatenate([np.linspace(0.0, upto, GRID + 1)[1:-1], upto * ends,
+                            upto * (1 - ends)])
+        for pole in self.poles:  # and on every pole near it
             c = d * (pole.real - t0)
             w = max(abs(pole.imag), 1e-12 * self.track.length)
             s = np.concatenate([s, c + np.outer([-1, 1], w * np.geomspace(1e4, 1, 13)).ravel()])
         s = np.unique(s[(s > MIN_STEP * self.track.length) & (s < upto)])
-        g = np.stack([self._g(t0 + d * si, parts)[live] for si in s])
-        bad = g > 0
+        g = self._g(t0 + d * s, parts)[:, live]
+        # a crossing: above NOISE after having been below -NOISE (a row active at t0 starts
+        # at 0 within round-off: its root there is the start, not an end)
+        below = np.maximum.accumulate(g < -NOISE, axis=0)
+        bad = (g > NOISE) & np.vstack([np.zeros((1, len(live)), bool), below[:-1]])
         if not bad.any():
             return []
         k = int(np.argmax(bad.any(axis=1)))
-        lo = 0.0 if k == 0 else s[k - 1]
         out = []
-        for j in live[bad[k]]:
-            fn = lambda x, j=j: self._g(t0 + d * x, parts)[j]
-            try:
-                out.append(brentq(fn, max(lo, MIN_STEP * self.track.length), s[k],
-                                  xtol=ROOT_TOL * self.track.length, rtol=1e-15))
-            except ValueError:  # no sign change inside (an end is a root): take the end
-                out.append(s[k])
+        for j in np.flatnonzero(bad[k]):
+            lo = s[k - 1]
+            if g[k - 1, j] >= 0:  # within round-off of 0 already: the root is there
+                out.append(lo)
+                continue
+            fn = lambda x, j=live[j]: self._g(t0 + d * x, parts)[j]
+            out.append(brentq(fn, lo, s[k], xtol=ROOT_TOL * self.track.length, rtol=1e-15))
         return out
 
     def limit(self, f: float) -> np.ndarray | None:
@@ -268,11 +298,19 @@ class State:
         g0 = self.slack(t, z0)
         slope = self.cz.slack(self.code, self.track.friction(t), n, u0=np.zeros_like(z0),
                               Ur=np.zeros(self.cz.p))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            c = np.where(slope > FEASIBLE_TOL, -g0 / slope, np.inf)
-        c = c[c > MIN_STEP]
-        end = c.min(initial=np.inf)
+        end = first_root(g0, slope, 1.0)
         probe = 0.5 * end if np.isfinite(end) else 1.0
         if end <= MIN_STEP or self.slack(t, z0 + probe * n).max() > FEASIBLE_TOL:
             return None
         return end, (z0 + end * n if np.isfinite(end) else None)
+
+
+def first_root(g0: np.ndarray, slope: np.ndarray, length: float) -> float:
+    """The first s > 0 at which an affine row g0 + slope s rises through 0 (inf: none); 0 if
+    a row active at s = 0 (within NOISE) rises at once (the piece is empty)."""
+    active = g0 >= -2 * NOISE
+    if np.any(active & (slope * length > NOISE)):
+        return 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(~active & (slope > 0), -g0 / slope, np.inf)
+    return float(s.min(initial=np.inf))

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SolverError
-from ..solvers.coulomb import Complementarity, _converged
+from ..solvers import coulomb
 from .arcs import MIN_STEP, State, Track
 from .pathresult import Curve, Event, PathPoint, Piece
 from .states import FREE, LABELS, SLIP_MINUS, SLIP_PLUS, STUCK
@@ -132,6 +132,9 @@ class Explorer:
         f, u0 = self.track.friction(t), self.track.u0(t)
         ok = self.cz.consistent(z, f, u0)
         if not ok.any(axis=1).all():
+            self.notes.append(f"a curve ends at {t:.10g}: its end is no solution to "
+                              "CONSISTENT_TOL at every node (round-off); the path may be "
+                              "incomplete there")
             return [], []
         options = [np.flatnonzero(row) for row in ok]
         if np.prod([len(o) for o in options], dtype=float) > MAX_STATES:
@@ -186,19 +189,10 @@ class Explorer:
 
     def _newton(self, t: float, z: np.ndarray) -> np.ndarray:
         """The contact forces of the Newton solution at t, from z."""
-        cz = self.cz
-        comp = Complementarity(cz.cond.S, self.track.u0(t), cz.Ur, self.track.friction(t))
-        uc = self.track.u0(t) + cz.C @ z
-        F, J, active = comp.evaluate(uc)
-        history, previous = [comp.residual(uc)], None
-        for _ in range(50):  # semi-smooth Newton: a few steps from a near point
-            if _converged(history, active, previous, 1e-12):
-                break
-            uc = uc + np.linalg.lstsq(J, -F, rcond=None)[0]
-            previous = active
-            F, J, active = comp.evaluate(uc)
-            history.append(comp.residual(uc))
-        return comp.forces(uc)
+        cz, u0 = self.cz, self.track.u0(t)
+        found = coulomb.solve(cz.problem, self.track.friction(t), condensed=(cz.cond, u0),
+                              start=u0 + cz.C @ z, tol=1e-12)
+        return np.concatenate([found.X, found.Y])
 
     def _distinct(self, arcs: list[Arc]) -> list[Arc]:
         """One arc per geometric piece: of arcs that coincide, the shortest (ties: the most

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..case.schema import Case, from_dict, load_case
 from ..errors import CaseError
@@ -128,9 +129,11 @@ def follow(problem: StaticProblem, parameter: str, span: tuple[float, float], *,
             notes.append(f"the curves start from the Newton solution at {a:g}; other "
                          f"solutions there, if any, are not followed (enumeration needs at "
                          f"most {MAX_NODES} contact nodes)")
-    for z in starts:
-        explorer.seed(a, z, "start")
-    isolated = _complete(explorer, enumerate_at, values) if enumerate_at else []
+    # one BLAS thread for the small dense matrices of the path (as the eigen stage does)
+    with threadpool_limits(1 if 2 * p < 1500 else None, user_api="blas"):
+        for z in starts:
+            explorer.seed(a, z, "start")
+        isolated = _complete(explorer, enumerate_at, values) if enumerate_at else []
     if isolated:
         notes.append(f"{len(isolated)} solution(s) found by the enumeration lie on no curve "
                      "that could be followed: listed as isolated")

@@ -31,7 +31,8 @@ CONSISTENT_TOL = 1e-9  # a node value within this (relative to F or D) of a boun
 @dataclass
 class Condensed:
     """The condensed problem: flexibility C (2p, 2p), u0 (2p,), U^r (p,), the row scale r and
-    the scales F, D; ``cond``: the factorization of K it came from (for K^-1 solves)."""
+    the scales F, D; ``cond``: the factorization of K it came from (for K^-1 solves), and the
+    static problem itself."""
 
     C: np.ndarray
     u0: np.ndarray
@@ -40,6 +41,7 @@ class Condensed:
     F: float
     D: float
     cond: object = None
+    problem: StaticProblem | None = None
 
     @property
     def p(self) -> int:
@@ -58,7 +60,7 @@ class Condensed:
         loads = [u0, *extra]
         F = max(np.abs(stuck).max(), *(np.abs(cond.S @ u).max() for u in loads), 1e-300)
         D = max(*(np.abs(u).max() for u in loads), np.abs(Ur).max(), F / r)
-        return cls(C, u0, Ur, r, F, D, cond)
+        return cls(C, u0, Ur, r, F, D, cond, problem)
 
     def contact(self, z: np.ndarray, u0=None):
         """(U_n, U_t, X, Y) of contact forces z (..., 2p) (``u0``: another load's u0)."""

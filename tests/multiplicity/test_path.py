@@ -224,20 +224,45 @@ def test_a_positively_homogeneous_load_path_is_a_ray():
         assert np.allclose(pt.X, pt.value / last.value * last.X, atol=1e-12 * np.abs(last.X).max())
 
 
-def test_pencil_and_grid_roots_agree():
-    """The exact roots (pencils) and the bracketing grid of large states give one path."""
-    case = grid_case(nx=4, ny=3, height=1.53, skew=0.79, seed=1, parameter="friction",
-                     span=(0.0, 4.0))
-    exact = path_case(case)
-    old = arcs.EXACT_SLIP
-    arcs.EXACT_SLIP = 0
-    try:
-        grid = path_case(case)
-    finally:
-        arcs.EXACT_SLIP = old
-    assert [e.kind for e in exact.events] == [e.kind for e in grid.events]
-    assert np.allclose([e.value for e in exact.events], [e.value for e in grid.events],
-                       rtol=0, atol=1e-11)
+@pytest.mark.parametrize("exact", [0, 1000], ids=["grid everywhere", "pencils everywhere"])
+def test_pencil_and_grid_roots_agree(exact, monkeypatch):
+    """The exact roots (pencils) and the bracketing grid of large states give one path: on a
+    small sheared grid, and along the friction on the unit square (41 contact nodes, up to 40
+    slipping: the grid by default), to 1e-13."""
+    small = grid_case(nx=4, ny=2, height=0.54, skew=-1.87, seed=1, parameter="friction",
+                      span=(0.0, 4.0))
+    square = critfric.load_case("unit-square", overrides={
+        "path.parameter": "friction", "path.range": [0.0, 0.12], "path.samples": 5,
+        "path.start": "newton"})
+    default = [path_case(small), path_case(square)]
+    monkeypatch.setattr(arcs, "EXACT_SLIP", exact)
+    for a, b in zip(default, [path_case(small), path_case(square)]):
+        assert [e.kind for e in a.events] == [e.kind for e in b.events]
+        assert np.allclose([e.value for e in a.events], [e.value for e in b.events], rtol=0,
+                           atol=1e-13)
+        assert a.counts() == b.counts()
+
+
+@pytest.mark.parametrize("name, parameter, span", [
+    ("unit-square", "friction", (0.0, 3.0)), ("unit-square", "load", (0.0, 1.0)),
+    ("inclined-body", "friction", (0.0, 2.0))])
+def test_paths_of_gmsh_bodies_are_exact_solutions(name, parameter, span):
+    """41 and 57 contact nodes: every point solves (2.9)-(2.11) to 1e-10, and its residual
+    on the Newton solver's complementarity functions is at most 1e-10."""
+    over = {"path.parameter": parameter, "path.range": list(span), "path.samples": 11,
+            "path.start": "newton"}
+    if name == "inclined-body":  # pressed and sheared towards the lean
+        over.update({"load.displacement": {"top": [-0.01, -0.01]}})
+    case = critfric.load_case(name, overrides=over)
+    r = path_case(case)
+    assert r.counts()["pieces"] >= 10 and not any("incomplete" in n for n in r.notes)
+    cz = Condensed.of(case_problem(case, prepare(case).system, friction=0.0))
+    for c in r.curves:
+        for pt in c.points:
+            f = pt.value if parameter == "friction" else r.friction
+            bad = violations(pt.Un, pt.Ut, pt.X, pt.Y, cz.Ur, f, force_scale=cz.F,
+                             disp_scale=cz.D)
+            assert max(bad.values()) <= 1e-10, (pt.value, bad)
 
 
 def test_path_refuses_what_it_cannot_do():
