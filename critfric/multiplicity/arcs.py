@@ -75,24 +75,31 @@ class State:
         self.E[p + self.slip, np.arange(len(self.slip))] = 1.0
         self.Ft = np.zeros((len(self.slip), 2 * p))
         self.Ft[np.arange(len(self.slip)), self.slip] = -gamma
-        A0, _ = cz.systems(self.code, 0.0)
-        self.lu0 = la.lu_factor(A0, check_finite=False)
-        self.Z1 = la.lu_solve(self.lu0, self.E)
+        self.A0 = cz.matrix(self.code)
+        # one factorization: of A(fixed friction) on a load path (of A0 if that is singular:
+        # the fixed friction is a critical value of the state), of A0 on a friction path;
+        # A(f) = A(ref) + (f - ref) E F^T, singular where 1 + (f - ref) lambda = 0
+        ref = float(track.fixed) if track.parameter == "load" else 0.0
+        self.lu = la.lu_factor(self.A(ref), check_finite=False)
+        pivots = np.abs(np.diag(self.lu[0]))
+        if ref and not pivots.min() > 1e-13 * pivots.max():
+            ref, self.lu = 0.0, la.lu_factor(self.A0, check_finite=False)
+        self.ref, self._rows = ref, None
+        self.Z1 = la.lu_solve(self.lu, self.E)
         self.H = self.Ft @ self.Z1
         lam = la.eigvals(self.H) if len(self.slip) else np.zeros(0)
         real = (np.abs(lam.imag) <= REAL_TOL * np.abs(lam)) & (np.abs(lam) > INFINITE_TOL)
-        self.critical = np.sort(-1.0 / lam[real].real)
-        self.poles = -1.0 / lam[np.abs(lam) > INFINITE_TOL]  # complex too: for the grid
-        self.lu, self._rows = None, None
-        if track.parameter == "load" and self.singular_at(track.fixed) is None:
-            self.lu = la.lu_factor(self.A(track.fixed), check_finite=False)
+        self.critical = np.sort(ref - 1.0 / lam[real].real)
+        self.poles = ref - 1.0 / lam[np.abs(lam) > INFINITE_TOL]  # complex too: for the grid
 
     # ------------------------------------------------------------------ the linear system
     def A(self, f: float) -> np.ndarray:
-        return self.cz.systems(self.code, f)[0]
+        A = self.A0.copy()
+        A[self.cz.p + self.slip, self.slip] = np.diag(self.Ft[:, self.slip]) * f
+        return A
 
     def b(self, t: float) -> np.ndarray:
-        return self.cz.systems(self.code, 0.0, u0=self.track.u0(t))[1]
+        return self.cz.rhs(self.code, u0=self.track.u0(t))
 
     def singular_at(self, f: float) -> float | None:
         """The critical value of the state that f is on, or None."""
@@ -107,9 +114,9 @@ class State:
     def solve(self, t: float) -> np.ndarray:
         """z(t) of a regular state."""
         f, b = self.track.friction(t), self.b(t)
-        if self.lu is not None:
+        if self.track.parameter == "load":
             return la.lu_solve(self.lu, b)
-        z0 = la.lu_solve(self.lu0, b)
+        z0 = la.lu_solve(self.lu, b)
         y = la.solve(np.eye(len(self.slip)) + f * self.H, self.Ft @ z0, check_finite=False)
         return z0 - f * self.Z1 @ y
 
@@ -155,7 +162,7 @@ class State:
 
     def solve_direction(self) -> np.ndarray:
         """dz/dt of a load path: A z' = b(u0 of L1, U^r = 0)."""
-        _, b1 = self.cz.systems(self.code, 0.0, u0=self.track.u0b, Ur=np.zeros(self.cz.p))
+        b1 = self.cz.rhs(self.code, u0=self.track.u0b, Ur=np.zeros(self.cz.p))
         return la.lu_solve(self.lu, b1)
 
     def _friction_exit(self, t0, d, lim):
@@ -175,7 +182,7 @@ class State:
         """The rows as g(f) = a + f b - f (P + f Q) y(f), (I + f H) y = q: the same at every
         t0 of a friction path (the load is fixed), so made once per state."""
         if self._rows is None:
-            z0 = la.lu_solve(self.lu0, self.b(t0))
+            z0 = la.lu_solve(self.lu, self.b(t0))
             cz, u0 = self.cz, self.track.u0(t0)
             a = cz.slack(self.code, 0.0, z0, u0=u0)
             linear = lambda f: cz.slack(self.code, f, self.Z1.T, u0=np.zeros_like(z0),
@@ -283,7 +290,7 @@ class State:
     def limit(self, f: float) -> np.ndarray | None:
         """The limit of z at the critical value f where the pole is removable, else None."""
         lam, V = la.eig(self.H)
-        z0 = la.lu_solve(self.lu0, self.b(f))
+        z0 = la.lu_solve(self.lu, self.b(f))
         w = la.solve(V, self.Ft @ z0)
         at = np.abs(1.0 + f * lam) <= SINGULAR_TOL * np.maximum(np.abs(f * lam), 1.0)
         residue = np.abs(self.Z1 @ (V[:, at] * w[at])).max(initial=0.0) * abs(f)

@@ -85,9 +85,26 @@ class Condensed:
         first = np.where(c == FREE, EX, r * self.C[:p])
         second = np.where(c == FREE, EY, np.where(c == STUCK, r * self.C[p:],
                                                   EY - gamma * friction * EX))
+        return np.concatenate([first, second], axis=-2), self.rhs(codes, u0=u0, Ur=Ur)
+
+    def matrix(self, code: np.ndarray) -> np.ndarray:
+        """A of one state at friction 0 (:meth:`systems` for one code, without its batch)."""
+        p, r = self.p, self.r
+        contact = np.concatenate([code != FREE, code == STUCK])  # rows of C, others unit
+        A = np.zeros((2 * p, 2 * p))
+        A[contact] = r * self.C[contact]
+        unit = np.flatnonzero(~contact)
+        A[unit, unit] = 1.0
+        return A
+
+    def rhs(self, codes: np.ndarray, *, u0=None, Ur=None) -> np.ndarray:
+        """b of :meth:`systems` alone (..., 2p)."""
+        p, r = self.p, self.r
+        u0 = self.u0 if u0 is None else u0
+        Ur = self.Ur if Ur is None else Ur
         b1 = np.where(codes == FREE, 0.0, -r * u0[:p])
         b2 = np.where(codes == STUCK, r * (Ur - u0[p:]), 0.0)
-        return np.concatenate([first, second], axis=-2), np.concatenate([b1, b2], axis=-1)
+        return np.concatenate([b1, b2], axis=-1)
 
     def inequalities(self, code: np.ndarray, friction: float, *, u0=None, Ur=None):
         """G z <= h of one state (rows scaled by F or D) and the node of each row."""
