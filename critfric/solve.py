@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from .case.schema import Case, from_dict, load_case
+from .case.schema import Case, as_case
 from .errors import CaseError
 from .fem.assembly import assemble_elasticity, lame
 from .fem.contact import ContactSystem, check_held, contact_layout, contact_system
@@ -315,11 +315,6 @@ def solve_case(case: Case | dict | str | Path, *, overrides: dict[str, Any] | No
 
     case: a :class:`Case`, a case file path, a shipped case name ("unit-square"), or a dict
     of sections as in a case file ({"geometry": {"shape": "square"}, ...})."""
-    if isinstance(case, dict):
-        case = from_dict(case, overrides=overrides)
-    elif not isinstance(case, Case):
-        case = load_case(case, overrides=overrides)
-    elif overrides:
-        case = case.with_overrides(overrides)
+    case = as_case(case, overrides=overrides)
     return solve_prepared(prepare(case, max_dofs=max_dofs, trust_geo=trust_geo, _plan=True),
                           case, _release=True)

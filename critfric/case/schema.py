@@ -241,6 +241,17 @@ def load_case(case: str | Path, *, overrides: dict[str, Any] | None = None) -> C
     return loads_case(text, source=str(path), name=path.stem, overrides=overrides)
 
 
+def as_case(case: Case | dict | str | Path, *, overrides: dict[str, Any] | None = None
+            ) -> Case:
+    """A :class:`Case` from a case, a dict of sections, a case file path or a shipped name,
+    with dotted-key ``overrides`` applied."""
+    if isinstance(case, dict):
+        return from_dict(case, overrides=overrides)
+    if not isinstance(case, Case):
+        return load_case(case, overrides=overrides)
+    return case.with_overrides(overrides) if overrides else case
+
+
 def loads_case(text: str, *, source: str = "<string>", name: str = "case",
                overrides: dict[str, Any] | None = None) -> Case:
     """Parse and validate TOML text."""

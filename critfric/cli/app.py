@@ -24,9 +24,9 @@ from ..case.schema import (
 from ..errors import CaseError
 from ..fem.elements import NAMES
 from ..files.results import default_output, write_result
-from ..files.safety import check_output, interrupt_guard, output_lock
+from ..files.safety import interrupt_guard, output_lock
 from ..solve import solve_case
-from .common import MaxDofs, TrustGeo, app, fmt_values
+from .common import MaxDofs, TrustGeo, app, computed_and_written, figures_and_notes, fmt_values
 from .failures import reported, say, set_verbosity, verbosity
 
 
@@ -99,23 +99,11 @@ def solve(
     overrides = {OVERRIDES[k]: v for k, v in given.items() if v is not None}
     with reported("no result written (an existing file is unchanged)") as ending:
         loaded = load_case(case, overrides=overrides)
-        path = check_output(default_output(loaded), force=force, inputs=loaded.inputs())
-        with interrupt_guard() as interrupted, output_lock(path):
-            check_output(path, force=force)  # again: another run may have written it
-            result = solve_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo)
-            interrupted.check()  # a Ctrl-C that Python swallowed: still nothing written
-            with interrupted.deferred():  # a Ctrl-C during the write comes after it
-                write_result(result, path, force=force)
-                ending.kept = f"the result is written to {path}"
-        if plot:
-            from ..plots.figures import plot_file
-
-            for png in plot_file(path):
-                say(f"wrote {png}")
-        for note in result.notes:
-            say(f"critfric: note: {note}")
-        for warning in result.warnings:
-            say(f"critfric: warning: {warning}")
+        path, result = computed_and_written(
+            default_output(loaded), force=force, inputs=loaded.inputs(), ending=ending,
+            compute=lambda: solve_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo),
+            write=write_result)
+        figures_and_notes(path, result, plot=plot)
         stages = ", ".join(f"{k} {v:.3f} s" for k, v in result.timings.items())
         say(f"critfric: stages: {stages}; solver {result.solver}, backend {result.backend}",
             level=2)
@@ -178,24 +166,11 @@ def stability(
                  "friction": _friction_range(friction), "steps": steps, "backend": backend}
         overrides = {OVERRIDES[k]: v for k, v in given.items() if v is not None}
         loaded = load_case(case, overrides=overrides)
-        path = output or default_stability_output(loaded)
-        path = check_output(path, force=force, inputs=loaded.inputs())
-        with interrupt_guard() as interrupted, output_lock(path):
-            check_output(path, force=force)
-            result = stability_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo)
-            interrupted.check()
-            with interrupted.deferred():  # a Ctrl-C during the write comes after it
-                write_stability(result, path, force=force)
-                ending.kept = f"the result is written to {path}"
-        if plot:
-            from ..plots.figures import plot_file
-
-            for png in plot_file(path):
-                say(f"wrote {png}")
-        for note in result.notes:
-            say(f"critfric: note: {note}")
-        for warning in result.warnings:
-            say(f"critfric: warning: {warning}")
+        path, result = computed_and_written(
+            output or default_stability_output(loaded), force=force, inputs=loaded.inputs(),
+            ending=ending, write=write_stability,
+            compute=lambda: stability_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo))
+        figures_and_notes(path, result, plot=plot)
         stages = ", ".join(f"{k} {v:.3f} s" for k, v in result.timings.items())
         say(f"critfric: stages: {stages}; Newton steps {result.newton_steps}", level=2)
         if as_json:

@@ -12,8 +12,7 @@ import typer
 from ..case.schema import OVERRIDES, load_case
 from ..errors import CaseError
 from ..fem.elements import NAMES
-from ..files.safety import check_output, interrupt_guard, output_lock
-from .common import MaxDofs, TrustGeo, app, fmt_values
+from .common import MaxDofs, TrustGeo, app, computed_and_written, figures_and_notes, fmt_values
 from .failures import reported, say
 
 RANGE_ALLOWED = ("A:B, two plain (ASCII) numbers with A < B (the case key path.range; a "
@@ -91,22 +90,11 @@ def path(
         from ..files.pathfile import default_path_output, write_path
         from ..multiplicity.path import path_case
 
-        out = check_output(output or default_path_output(loaded), force=force,
-                           inputs=loaded.inputs())
-        with interrupt_guard() as interrupted, output_lock(out):
-            check_output(out, force=force)  # again: another run may have written it
-            result = path_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo)
-            interrupted.check()
-            with interrupted.deferred():  # a Ctrl-C during the write comes after it
-                write_path(result, out, force=force)
-                ending.kept = f"the result is written to {out}"
-        if plot:
-            from ..plots.figures import plot_file
-
-            for png in plot_file(out):
-                say(f"wrote {png}")
-        for note in result.notes:
-            say(f"critfric: note: {note}")
+        out, result = computed_and_written(
+            output or default_path_output(loaded), force=force, inputs=loaded.inputs(),
+            ending=ending, write=write_path,
+            compute=lambda: path_case(loaded, max_dofs=max_dofs, trust_geo=trust_geo))
+        figures_and_notes(out, result, plot=plot)
         if as_json:
             typer.echo(json.dumps(result.to_json()))
             return

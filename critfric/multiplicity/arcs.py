@@ -221,7 +221,6 @@ class State:
         a, b, P, Q, q = parts
         p0, L = len(q), self.track.length
         I, Z = np.eye(p0), np.zeros((p0, p0))
-        out = []
         col, row = np.zeros((p0, 1)), np.zeros((1, p0))
         rows, cands = [], []
         for j in live:  # loop over the rows of one state, each a pencil of size 2 p0 + 1

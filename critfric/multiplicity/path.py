@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..case.schema import Case, from_dict, load_case
+from ..case.schema import Case, as_case
 from ..errors import CaseError
 from ..fem.static import StaticProblem
 from ..solve import prepare
@@ -60,12 +60,7 @@ def path_case(case: Case | dict | str | Path, *, overrides: dict[str, Any] | Non
               max_dofs: int | None = None, trust_geo: bool = False) -> PathResult:
     """Follow the solution curves of a case's static problem along ``[path] parameter``."""
     started = time.perf_counter()
-    if isinstance(case, dict):
-        case = from_dict(case, overrides=overrides)
-    elif not isinstance(case, Case):
-        case = load_case(case, overrides=overrides)
-    elif overrides:
-        case = case.with_overrides(overrides)
+    case = as_case(case, overrides=overrides)
     opts = _options(case)
     a, b = opts["range"]
     friction = None

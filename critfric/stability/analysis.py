@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ..case.schema import Case, from_dict, load_case
+from ..case.schema import Case, as_case
 from ..errors import CaseError, SolverError
 from ..fem.assembly import assemble_mass, lame
 from ..fem.mesh import Mesh
@@ -225,10 +225,5 @@ def stability_case(case: Case | dict | str | Path, *, overrides: dict[str, Any] 
     """Load (if needed), mesh, assemble and analyse a case; what ``critfric stability`` calls.
 
     case: a :class:`Case`, a case file path, a shipped case name, or a dict of sections."""
-    if isinstance(case, dict):
-        case = from_dict(case, overrides=overrides)
-    elif not isinstance(case, Case):
-        case = load_case(case, overrides=overrides)
-    elif overrides:
-        case = case.with_overrides(overrides)
+    case = as_case(case, overrides=overrides)
     return stability_prepared(prepare(case, max_dofs=max_dofs, trust_geo=trust_geo), case)
