@@ -69,13 +69,10 @@ class State:
         self.track, self.cz, self.code = track, track.cz, np.asarray(code, dtype=np.int8)
         cz, p = self.cz, self.cz.p
         self.slip = np.flatnonzero((self.code == SLIP_PLUS) | (self.code == SLIP_MINUS))
-        gamma = np.where(self.code[self.slip] == SLIP_PLUS, 1.0, -1.0)
-        # A(f) = A0 + f E F^T: E the slip Y rows, F^T = -gamma X_slip
-        self.E = np.zeros((2 * p, len(self.slip)))
-        self.E[p + self.slip, np.arange(len(self.slip))] = 1.0
-        self.Ft = np.zeros((len(self.slip), 2 * p))
-        self.Ft[np.arange(len(self.slip)), self.slip] = -gamma
-        self.A0 = cz.matrix(self.code)
+        # A(f) = A0 + f E F^T: E puts y on the slip Y rows, F^T z = -gamma X_slip
+        self.gamma = np.where(self.code[self.slip] == SLIP_PLUS, 1.0, -1.0)
+        E = np.zeros((2 * p, len(self.slip)))
+        E[p + self.slip, np.arange(len(self.slip))] = 1.0
         # one factorization: of A(fixed friction) on a load path (of A0 if that is singular:
         # the fixed friction is a critical value of the state), of A0 on a friction path;
         # A(f) = A(ref) + (f - ref) E F^T, singular where 1 + (f - ref) lambda = 0
@@ -83,10 +80,11 @@ class State:
         self.lu = la.lu_factor(self.A(ref), check_finite=False)
         pivots = np.abs(np.diag(self.lu[0]))
         if ref and not pivots.min() > 1e-13 * pivots.max():
-            ref, self.lu = 0.0, la.lu_factor(self.A0, check_finite=False)
+            ref, self.lu = 0.0, la.lu_factor(self.A(0.0), check_finite=False)
         self.ref, self._rows = ref, None
-        self.Z1 = la.lu_solve(self.lu, self.E)
-        self.H = self.Ft @ self.Z1
+        Z1 = la.lu_solve(self.lu, E)
+        self.H = self.Ft(Z1)
+        self.Z1 = Z1 if track.parameter == "friction" else None  # Woodbury along the friction
         lam = la.eigvals(self.H) if len(self.slip) else np.zeros(0)
         real = (np.abs(lam.imag) <= REAL_TOL * np.abs(lam)) & (np.abs(lam) > INFINITE_TOL)
         self.critical = np.sort(ref - 1.0 / lam[real].real)
@@ -94,9 +92,14 @@ class State:
 
     # ------------------------------------------------------------------ the linear system
     def A(self, f: float) -> np.ndarray:
-        A = self.A0.copy()
-        A[self.cz.p + self.slip, self.slip] = np.diag(self.Ft[:, self.slip]) * f
+        A = self.cz.matrix(self.code)
+        A[self.cz.p + self.slip, self.slip] = -self.gamma * f
         return A
+
+    def Ft(self, z: np.ndarray) -> np.ndarray:
+        """F^T z = -gamma X on the slipping nodes (z of shape (2p,) or (2p, k))."""
+        g = self.gamma if z.ndim == 1 else self.gamma[:, None]
+        return -g * z[self.slip]
 
     def b(self, t: float) -> np.ndarray:
         return self.cz.rhs(self.code, u0=self.track.u0(t))
@@ -117,7 +120,7 @@ class State:
         if self.track.parameter == "load":
             return la.lu_solve(self.lu, b)
         z0 = la.lu_solve(self.lu, b)
-        y = la.solve(np.eye(len(self.slip)) + f * self.H, self.Ft @ z0, check_finite=False)
+        y = la.solve(np.eye(len(self.slip)) + f * self.H, self.Ft(z0), check_finite=False)
         return z0 - f * self.Z1 @ y
 
     def slack(self, t: float, z: np.ndarray) -> np.ndarray:
@@ -189,7 +192,7 @@ class State:
                                         Ur=np.zeros(cz.p)).T
             P = linear(0.0)
             self._rows = (a, cz.slack(self.code, 1.0, z0, u0=u0) - a, P, linear(1.0) - P,
-                          self.Ft @ z0)
+                          self.Ft(z0))
         return self._rows
 
     def _g(self, f, parts):
@@ -290,7 +293,7 @@ class State:
         """The limit of z at the critical value f where the pole is removable, else None."""
         lam, V = la.eig(self.H)
         z0 = la.lu_solve(self.lu, self.b(f))
-        w = la.solve(V, self.Ft @ z0)
+        w = la.solve(V, self.Ft(z0))
         at = np.abs(1.0 + f * lam) <= SINGULAR_TOL * np.maximum(np.abs(f * lam), 1.0)
         residue = np.abs(self.Z1 @ (V[:, at] * w[at])).max(initial=0.0) * abs(f)
         if residue > SINGULAR_TOL * self.cz.F * max(abs(f), 1.0):

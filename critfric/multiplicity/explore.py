@@ -22,6 +22,7 @@ Newton solution a step PROBE (relative to the range) away, each way.
 from __future__ import annotations
 
 import itertools
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,6 +34,7 @@ from .pathresult import Curve, Event, PathPoint, Piece
 from .states import FREE, LABELS, SLIP_MINUS, SLIP_PLUS, STUCK
 
 MAX_STATES = 64
+STATE_BYTES = 1 << 30  # factored states kept for reuse
 SAME_TOL = 1e-7
 PROBE = 1e-6
 CODES = {"free": FREE, "stuck": STUCK, "slip+": SLIP_PLUS, "slip-": SLIP_MINUS, "cone": STUCK}
@@ -99,7 +101,7 @@ class Explorer:
     def __init__(self, track: Track, samples: np.ndarray, max_pieces: int):
         self.track, self.cz, self.samples = track, track.cz, samples
         self.max_pieces = max_pieces
-        self.states: dict[bytes, State] = {}
+        self.states: OrderedDict[bytes, State] = OrderedDict()
         self.walked = Points()  # midpoints of the pieces walked
         self.vertices = Points()  # vertices reached, with their event (or None)
         self.curves: list[Curve] = []
@@ -114,10 +116,17 @@ class Explorer:
         return np.concatenate([[t / self.track.length], self.cz.norm(z, self.track.u0(t))])
 
     def state(self, code) -> State:
+        """The state of ``code``, factored once while it is among the recently used ones
+        (at most what STATE_BYTES holds: a path meets the same state only near where it met
+        it before)."""
         code = np.asarray(code, dtype=np.int8)
         k = code.tobytes()
-        if k not in self.states:
-            self.states[k] = State(self.track, code)
+        if k in self.states:
+            self.states.move_to_end(k)
+            return self.states[k]
+        self.states[k] = State(self.track, code)
+        if len(self.states) > max(8, STATE_BYTES // (16 * (2 * self.cz.p) ** 2)):
+            self.states.popitem(last=False)
         return self.states[k]
 
     def point(self, t: float, z: np.ndarray, piece: int) -> PathPoint:
@@ -225,8 +234,8 @@ class Explorer:
         if self._vertex(t, z) is not None:
             return
         arcs, singular = self.arcs(t, z)
-        inside = (not singular and len(arcs) == 2 and arcs[0].state is arcs[1].state
-                  and arcs[0].d == -arcs[1].d)
+        inside = (not singular and len(arcs) == 2 and arcs[0].d == -arcs[1].d
+                  and np.array_equal(arcs[0].state.code, arcs[1].state.code))
         back = min(arcs, key=lambda a: a.d) if inside else None
         if back is not None and back.z1 is not None:  # inside a piece: start at its end
             t, z = back.t1, back.z1
@@ -350,7 +359,7 @@ class Explorer:
             kind = "branch"
         elif len(others) == 1 and arc is not None:
             o = others[0]
-            if o.state is arc.state and o.d == arc.d:
+            if np.array_equal(o.state.code, arc.state.code) and o.d == arc.d:
                 return None
             kind = "fold" if arc.d and o.d and o.d != arc.d else "kink"
         else:
