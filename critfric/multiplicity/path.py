@@ -33,7 +33,8 @@ from .explore import SAME_TOL, Explorer
 from .pathresult import PathResult
 from .states import Condensed
 
-MAX_CONTACT = 3000  # dense 2p x 2p condensed matrices: 2p = 6000 is 0.3 GB each
+PIECE_SECONDS = 1e-10  # a piece costs about this x (2p)^3 s (401 nodes: 0.05 s measured)
+MAX_SECONDS = 3600  # refuse a path whose p pieces (one a node, at least) need longer
 MAX_STORED = 5 * 10**7  # sample values x contact nodes, the size of one curve's points
 ENUMERATED = 3 * 10**7  # sample values x 4^p contact states: about 4 minutes (8.4 us each)
 
@@ -141,10 +142,13 @@ def follow(problem: StaticProblem, parameter: str, span: tuple[float, float], *,
 
 
 def _guard(case: Case, p: int, opts: dict) -> None:
-    if p > MAX_CONTACT:
-        raise CaseError(f"the mesh has {p} contact nodes; a path keeps dense {2 * p} x {2 * p} "
-                        f"matrices, allowed up to {MAX_CONTACT} contact nodes: use a coarser "
-                        "mesh on Gamma_C", file=case.source, key="mesh.size")
+    each = PIECE_SECONDS * (2 * p) ** 3
+    if p * each > MAX_SECONDS:
+        raise CaseError(f"the mesh has {p} contact nodes: a path of at least {p} pieces (one a "
+                        f"node) of about {each:.2g} s each (dense {2 * p} x {2 * p} systems) "
+                        f"takes about {p * each / 60:.0f} minutes or more; allowed: about "
+                        f"{MAX_SECONDS // 60} minutes (some 1400 contact nodes): a coarser mesh "
+                        "on Gamma_C", file=case.source, key="mesh.size")
     if p <= MAX_NODES and opts["samples"] * 4**p > ENUMERATED:
         most = ENUMERATED // 4**p
         raise CaseError(f"got {opts['samples']} samples: with {p} contact nodes every solution "

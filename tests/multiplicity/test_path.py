@@ -14,6 +14,7 @@ from critfric.case.schema import from_dict, loads_case
 from critfric.errors import CaseError, SolverError
 from critfric.fem.assembly import lame
 from critfric.multiplicity import arcs
+from critfric.multiplicity import path as path_module
 from critfric.multiplicity.enumeration import Enumerator
 from critfric.multiplicity.path import follow, path_case
 from critfric.multiplicity.states import Condensed
@@ -265,8 +266,18 @@ def test_paths_of_gmsh_bodies_are_exact_solutions(name, parameter, span):
             assert max(bad.values()) <= 1e-10, (pt.value, bad)
 
 
-def test_path_refuses_what_it_cannot_do():
+def test_path_refuses_what_it_cannot_do(monkeypatch):
     case = critfric.load_case(CASES / "one_triangle.toml", overrides={"path.range": [0, 3]})
+    monkeypatch.setattr(path_module, "MAX_SECONDS", 0)  # as if the mesh were too fine
+    with pytest.raises(CaseError, match="minutes") as err:
+        path_case(case)
+    assert err.value.key == "mesh.size"
+    monkeypatch.undo()
+    eight = grid_case(nx=7, ny=1, height=1.0, skew=0.0, seed=0, parameter="friction",
+                      span=(0.0, 1.0))  # 8 contact nodes: 4^8 states at each sample
+    with pytest.raises(CaseError, match="at most 457 samples") as err:
+        path_case(eight.with_overrides({"path.samples": 1000}))
+    assert err.value.key == "path.samples"
     with pytest.raises(CaseError, match="path.node|contact node"):
         path_case(case.with_overrides({"path.node": 3}))
     text = (CASES / "one_triangle.toml").read_text().split("\n[path]")[0]
