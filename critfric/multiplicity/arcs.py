@@ -37,6 +37,7 @@ from .states import SLIP_MINUS, SLIP_PLUS, Condensed
 
 EXACT_SLIP = 16
 GRID = 64
+CHUNK = 16  # grid values evaluated at a time
 ROOT_TOL = 1e-13
 MIN_STEP = 1e-10
 FEASIBLE_TOL = 1e-9
@@ -85,7 +86,12 @@ class State:
         Z1 = la.lu_solve(self.lu, E)
         self.H = self.Ft(Z1)
         self.Z1 = Z1 if track.parameter == "friction" else None  # Woodbury along the friction
-        lam = la.eigvals(self.H) if len(self.slip) else np.zeros(0)
+        self.schur = None  # H = Z T Z^*: O(p0^2) solves at every friction of the grid
+        if track.parameter == "friction" and len(self.slip) > EXACT_SLIP:
+            self.schur = la.schur(self.H, output="complex")
+            lam = np.diag(self.schur[0])
+        else:
+            lam = la.eigvals(self.H) if len(self.slip) else np.zeros(0)
         real = (np.abs(lam.imag) <= REAL_TOL * np.abs(lam)) & (np.abs(lam) > INFINITE_TOL)
         self.critical = np.sort(ref - 1.0 / lam[real].real)
         self.poles = ref - 1.0 / lam[np.abs(lam) > INFINITE_TOL]  # complex too: for the grid
@@ -199,10 +205,27 @@ class State:
         """The rows at friction f: (m,) for a number, (n, m) for n values at once."""
         a, b, P, Q, q = parts
         F = np.atleast_1d(np.asarray(f, dtype=float))
-        y = np.linalg.solve(np.eye(len(q)) + F[:, None, None] * self.H,
-                            np.broadcast_to(q, (len(F), len(q)))[..., None])[..., 0]
+        if self.schur is None:
+            y = np.linalg.solve(np.eye(len(q)) + F[:, None, None] * self.H,
+                                np.broadcast_to(q, (len(F), len(q)))[..., None])[..., 0]
+        else:  # (I + f T) w = Z^* q, y = Z w: a triangular solve per friction value
+            T, Zs = self.schur
+            r, I = Zs.conj().T @ q, np.eye(len(q))
+            w = np.stack([la.solve_triangular(I + fi * T, r, check_finite=False) for fi in F])
+            y = (w @ Zs.T).real
         g = a + F[:, None] * b - F[:, None] * (y @ P.T + F[:, None] * (y @ Q.T))
         return g if np.ndim(f) else g[0]
+
+    def _g_row(self, f: float, parts, j: int) -> float:
+        """Row j alone at friction f (what Brent's method evaluates)."""
+        a, b, P, Q, q = parts
+        if self.schur is None:
+            y = la.solve(np.eye(len(q)) + f * self.H, q, check_finite=False)
+        else:
+            T, Zs = self.schur
+            y = (Zs @ la.solve_triangular(np.eye(len(q)) + f * T, Zs.conj().T @ q,
+                                          check_finite=False)).real
+        return float(a[j] + f * b[j] - f * (P[j] @ y + f * (Q[j] @ y)))
 
     def _roots(self, t0: float, d: int, upto: float) -> float:
         """The first s in (MIN_STEP, upto) with a row g_j(t0 + d s) = 0 (inf if none)."""
@@ -223,18 +246,23 @@ class State:
     def _pencil_roots(self, parts, live, t0, d, upto) -> list[float]:
         a, b, P, Q, q = parts
         p0, L = len(q), self.track.length
-        I, Z = np.eye(p0), np.zeros((p0, p0))
-        col, row = np.zeros((p0, 1)), np.zeros((1, p0))
+        I = np.eye(p0)
+        n = 2 * p0 + 1  # the pencil in (y, f y, 1); in (y, 1) where no f^2 term
+        big0, big1 = np.zeros((n, n)), np.zeros((n, n))
+        big0[:2 * p0, :2 * p0] = np.eye(2 * p0)
+        big0[:p0, -1] = -q
+        big1[:p0, :p0], big1[p0:2 * p0, :p0] = self.H, -I
+        small0, small1 = np.zeros((p0 + 1, p0 + 1)), np.zeros((p0 + 1, p0 + 1))
+        small0[:p0, :p0], small0[:p0, -1], small1[:p0, :p0] = I, -q, self.H
         rows, cands = [], []
         for j in live:  # loop over the rows of one state, each a pencil of size 2 p0 + 1
-            if Q[j].any() or b[j]:  # (y, f y, 1)
-                M0 = np.block([[I, Z, -q[:, None]], [Z, I, col],
-                               [row, -P[j][None], np.full((1, 1), a[j])]])
-                M1 = np.block([[self.H, Z, col], [-I, Z, col],
-                               [row, -Q[j][None], np.full((1, 1), b[j])]])
-            else:  # no f^2 term: (y, 1), size p0 + 1
-                M0 = np.block([[I, -q[:, None]], [row, np.full((1, 1), a[j])]])
-                M1 = np.block([[self.H, col], [-P[j][None], np.zeros((1, 1))]])
+            if Q[j].any() or b[j]:
+                M0, M1 = big0, big1
+                M0[-1, p0:2 * p0], M0[-1, -1] = -P[j], a[j]
+                M1[-1, p0:2 * p0], M1[-1, -1] = -Q[j], b[j]
+            else:
+                M0, M1 = small0, small1
+                M0[-1, -1], M1[-1, :p0] = a[j], -P[j]
             with np.errstate(all="ignore"):
                 f = la.eigvals(M0, -M1, check_finite=False)
             f = f[np.isfinite(f) & (np.abs(f.imag) <= REAL_TOL * np.maximum(np.abs(f), 1))].real
@@ -255,7 +283,7 @@ class State:
 
     def _polish(self, parts, j, t0, d, s) -> float:
         """An eigenvalue root of row j made exact to ROOT_TOL by Brent's method on the row."""
-        fn = lambda x: self._g(t0 + d * x, parts)[j]
+        fn = lambda x: self._g_row(t0 + d * x, parts, j)
         w = 1e-8 * max(s, self.track.length)
         lo, hi = max(s - w, 0.5 * s), s + w
         if fn(lo) < 0 < fn(hi):
@@ -265,18 +293,24 @@ class State:
     def _grid_roots(self, parts, live, t0, d, upto) -> list[float]:
         ends = np.geomspace(1e-13, 1e-2, 12)  # close in on both ends of the interval
         s = np.concatenate([np.linspace(0.0, upto, GRID + 1)[1:-1], upto * ends,
-                            upto * (1 - ends)])
-        for pole in self.poles:  # and on every pole near it
-            c = d * (pole.real - t0)
-            w = max(abs(pole.imag), 1e-12 * self.track.length)
-            s = np.concatenate([s, c + np.outer([-1, 1], w * np.geomspace(1e4, 1, 13)).ravel()])
+                            upto * (1 - ends), upto * np.geomspace(1e-6, 1e-2, 17)])
+        c = d * (self.poles.real - t0)
+        w = np.maximum(np.abs(self.poles.imag), 1e-12 * self.track.length)
+        near = (c > -w) & (c < upto + w) & (w < upto)  # the poles that shape the rows here
+        for ci, wi in zip(c[near], w[near]):  # close in on each of them
+            s = np.concatenate([s, ci + np.outer([-1, 1], wi * np.geomspace(1e3, 1, 10)).ravel()])
         s = np.unique(s[(s > MIN_STEP * self.track.length) & (s < upto)])
-        g = self._g(t0 + d * s, parts)[:, live]
         # a crossing: above NOISE after having been below -NOISE (a row active at t0 starts
-        # at 0 within round-off: its root there is the start, not an end)
-        below = np.maximum.accumulate(g < -NOISE, axis=0)
-        bad = (g > NOISE) & np.vstack([np.zeros((1, len(live)), bool), below[:-1]])
-        if not bad.any():
+        # at 0 within round-off: its root there is the start, not an end); evaluated in
+        # chunks from t0 on, up to the first chunk with one (pieces are mostly short)
+        g = np.zeros((0, len(live)))
+        for start in range(0, len(s), CHUNK):
+            g = np.vstack([g, self._g(t0 + d * s[start:start + CHUNK], parts)[:, live]])
+            below = np.maximum.accumulate(g < -NOISE, axis=0)
+            bad = (g > NOISE) & np.vstack([np.zeros((1, len(live)), bool), below[:-1]])
+            if bad.any():
+                break
+        else:
             return []
         k = int(np.argmax(bad.any(axis=1)))
         out = []
@@ -285,7 +319,7 @@ class State:
             if g[k - 1, j] >= 0:  # within round-off of 0 already: the root is there
                 out.append(lo)
                 continue
-            fn = lambda x, j=live[j]: self._g(t0 + d * x, parts)[j]
+            fn = lambda x, j=live[j]: self._g_row(t0 + d * x, parts, j)
             out.append(brentq(fn, lo, s[k], xtol=ROOT_TOL * self.track.length, rtol=1e-15))
         return out
 
