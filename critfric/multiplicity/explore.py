@@ -286,7 +286,7 @@ class Explorer:
 
     def _walk(self, ci: int, arc: Arc) -> list[tuple[int, Arc]]:
         """Walk from arc to arc along curve ci; return the curves spawned on the way."""
-        curve, spawned = self.curves[ci], []
+        curve, spawned, same = self.curves[ci], [], False
         while arc is not None:
             if self._walked(arc):
                 return spawned
@@ -295,8 +295,12 @@ class Explorer:
                 raise SolverError(f"the path needs more than {self.max_pieces} pieces; "
                                   "shorten [path] range, or raise [path] max_pieces")
             self.walked.add(arc.key)
-            st, k = arc.state, len(curve.pieces)
-            curve.pieces.append(self._piece(arc))
+            st = arc.state
+            if same:  # the state goes on through a vertex where a row only touched 0
+                curve.pieces[-1] = self._piece(arc, start=curve.pieces[-1].start)
+            else:
+                curve.pieces.append(self._piece(arc))
+            k = len(curve.pieces) - 1
             if arc.d:
                 lo, hi = sorted((arc.t0, arc.t1))
                 inside = self.samples[(self.samples > lo + MIN_STEP * self.track.length)
@@ -319,15 +323,19 @@ class Explorer:
                 self.vertices.add(self.key(t, z), event)
             todo = self._spread(ci, fresh, t, z, event)
             spawned += todo[1:]
-            arc = todo[0][1] if todo else None
+            nxt = todo[0][1] if todo else None
+            same = (nxt is not None and event is None and len(others) == 1 and nxt.d == arc.d
+                    and np.array_equal(nxt.state.code, arc.state.code))
+            arc = nxt
         return spawned
 
-    def _piece(self, arc: Arc) -> Piece:
-        st = arc.state
+    def _piece(self, arc: Arc, start: float | None = None) -> Piece:
+        """The piece of an arc (``start``: where the piece it extends began)."""
+        st, t0 = arc.state, arc.t0 if start is None else start
         pos, neg = st.margins()
-        f = max(abs(self.track.friction(arc.t0)), abs(self.track.friction(arc.t1)))
+        f = max(abs(self.track.friction(t0)), abs(self.track.friction(arc.t1)))
         margin = pos / f if pos is not None and f > 0 else None
-        return Piece([LABELS[c] for c in st.code], float(arc.t0), float(arc.t1), (pos, neg),
+        return Piece([LABELS[c] for c in st.code], float(t0), float(arc.t1), (pos, neg),
                      margin)
 
     def _add(self, ci: int, t: float, z: np.ndarray, piece: int) -> None:
