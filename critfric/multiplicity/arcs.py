@@ -276,19 +276,26 @@ class State:
         at = self._g(t0 + d * cands, parts)[np.arange(len(rows)), rows]
         half = self._g(t0 + d * cands / 2, parts)[np.arange(len(rows)), rows]
         regular = np.array([self.singular_at(t0 + d * c) is None for c in cands])
-        ok = regular & (np.abs(at) <= 1e-6) & (half < -NOISE)  # a root, crossed from below
-        first = cands[ok].min(initial=np.inf)  # only the first root (and its near ties) matter
-        near = ok & (cands <= first + 1e-6 * max(first, L))
-        return [self._polish(parts, j, t0, d, c) for j, c in zip(rows[near], cands[near])]
+        ok = regular & (np.abs(at) <= 1e-6) & (half < -NOISE)  # a root, below 0 before it
+        out: list[float] = []
+        for i in np.argsort(cands):  # only the first crossing (and its near ties) matter
+            if out and cands[i] > min(out) + 1e-6 * max(min(out), L):
+                break
+            root = self._polish(parts, rows[i], t0, d, cands[i]) if ok[i] else None
+            if root is not None:
+                out.append(root)
+        return out
 
-    def _polish(self, parts, j, t0, d, s) -> float:
-        """An eigenvalue root of row j made exact to ROOT_TOL by Brent's method on the row."""
+    def _polish(self, parts, j, t0, d, s) -> float | None:
+        """An eigenvalue root of row j made exact to ROOT_TOL by Brent's method on the row;
+        None unless the row crosses from below there (within 1e-8 relative): a touch, or the
+        round-off copy of a root at the start, is no end of the piece."""
         fn = lambda x: self._g_row(t0 + d * x, parts, j)
         w = 1e-8 * max(s, self.track.length)
         lo, hi = max(s - w, 0.5 * s), s + w
         if fn(lo) < 0 < fn(hi):
             return brentq(fn, lo, hi, xtol=ROOT_TOL * self.track.length, rtol=1e-15)
-        return s
+        return None
 
     def _grid_roots(self, parts, live, t0, d, upto) -> list[float]:
         ends = np.geomspace(1e-13, 1e-2, 12)  # close in on both ends of the interval
