@@ -30,6 +30,7 @@ import numpy as np
 from ..errors import SolverError
 from ..solvers import coulomb
 from .arcs import MIN_STEP, State, Track
+from .loadstate import LoadState, Singular
 from .pathresult import Curve, Event, PathPoint, Piece
 from .states import FREE, LABELS, SLIP_MINUS, SLIP_PLUS, STUCK
 
@@ -124,10 +125,20 @@ class Explorer:
         if k in self.states:
             self.states.move_to_end(k)
             return self.states[k]
-        self.states[k] = State(self.track, code)
+        self.states[k] = self._make(code)
         if len(self.states) > max(8, STATE_BYTES // (16 * (2 * self.cz.p) ** 2)):
             self.states.popitem(last=False)
         return self.states[k]
+
+    def _make(self, code: np.ndarray) -> State:
+        """A load path's state on its displacement unknowns (n_u = p0 + 2 p_free, cheaper),
+        on its contact forces where the fixed friction is a critical value of it."""
+        if self.track.parameter == "load":
+            try:
+                return LoadState(self.track, code)
+            except Singular:
+                pass
+        return State(self.track, code)
 
     def point(self, t: float, z: np.ndarray, piece: int) -> PathPoint:
         Un, Ut, X, Y = self.cz.contact(z, self.track.u0(t))
