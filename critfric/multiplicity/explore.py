@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import itertools
 from collections import OrderedDict
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -103,6 +104,10 @@ class Explorer:
         self.track, self.cz, self.samples = track, track.cz, samples
         self.max_pieces = max_pieces
         self.states: OrderedDict[bytes, State] = OrderedDict()
+        self.pending: list[tuple[Piece, State]] = []  # pieces whose margins are to come
+        # a load path's states find their critical values on a second thread, while this
+        # one walks on (LAPACK leaves Python's lock)
+        self.pool = ThreadPoolExecutor(1) if track.parameter == "load" else None
         self.walked = Points()  # midpoints of the pieces walked
         self.vertices = Points()  # vertices reached, with their event (or None)
         self.curves: list[Curve] = []
@@ -135,7 +140,7 @@ class Explorer:
         on its contact forces where the fixed friction is a critical value of it."""
         if self.track.parameter == "load":
             try:
-                return LoadState(self.track, code)
+                return LoadState(self.track, code, pool=self.pool)
             except Singular:
                 pass
         return State(self.track, code)
@@ -268,6 +273,7 @@ class Explorer:
     def finish(self) -> None:
         """Drop the curves spawned at a branch point whose piece another curve walked first,
         and renumber the events' curves."""
+        self._margins()
         keep = [i for i, c in enumerate(self.curves)
                 if c.pieces or not (isinstance(c.seed, dict) and "event" in c.seed)]
         new = {old: i for i, old in enumerate(keep)}
@@ -341,13 +347,21 @@ class Explorer:
         return spawned
 
     def _piece(self, arc: Arc, start: float | None = None) -> Piece:
-        """The piece of an arc (``start``: where the piece it extends began)."""
-        st, t0 = arc.state, arc.t0 if start is None else start
-        pos, neg = st.margins()
-        f = max(abs(self.track.friction(t0)), abs(self.track.friction(arc.t1)))
-        margin = pos / f if pos is not None and f > 0 else None
-        return Piece([LABELS[c] for c in st.code], float(t0), float(arc.t1), (pos, neg),
-                     margin)
+        """The piece of an arc (``start``: where the piece it extends began); its critical
+        values and margin are filled in by :meth:`finish` (a load path's state computes them
+        in the background)."""
+        t0 = arc.t0 if start is None else start
+        piece = Piece([LABELS[c] for c in arc.state.code], float(t0), float(arc.t1))
+        self.pending.append((piece, arc.state))
+        return piece
+
+    def _margins(self) -> None:
+        for piece, st in self.pending:  # every piece: its state's critical values
+            pos, neg = st.margins()
+            f = max(abs(self.track.friction(piece.start)), abs(self.track.friction(piece.end)))
+            piece.critical = (pos, neg)
+            piece.margin = pos / f if pos is not None and f > 0 else None
+        self.pending = []
 
     def _add(self, ci: int, t: float, z: np.ndarray, piece: int) -> None:
         self.curves[ci].points.append(self.point(t, z, piece))

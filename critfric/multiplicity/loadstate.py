@@ -33,7 +33,7 @@ class Singular(Exception):
 class LoadState(State):
     """:class:`.arcs.State` of a load path, solved on its displacement unknowns."""
 
-    def __init__(self, track: Track, code: np.ndarray):
+    def __init__(self, track: Track, code: np.ndarray, pool=None):
         self.track, self.cz, self.code = track, track.cz, np.asarray(code, dtype=np.int8)
         cz, p = self.cz, self.cz.p
         S = cz.cond.S
@@ -52,15 +52,31 @@ class LoadState(State):
             pivots = np.abs(np.diag(self.lu[0]))
             if not pivots.min() > 1e-13 * pivots.max():
                 raise Singular
-        beta = np.zeros(0)
+        T = np.zeros((0, 0))
         if p0:
             W = la.cho_solve(la.cho_factor(S[np.ix_(self.u, self.u)]), np.eye(len(self.u), p0))
-            beta = la.eigvals(self.gamma[:, None] * (S[np.ix_(self.slip, self.u)] @ W))
+            T = self.gamma[:, None] * (S[np.ix_(self.slip, self.u)] @ W)
+        # the eigenvalues on ``pool`` if given (they are needed only for the margins)
+        self._beta = pool.submit(la.eigvals, T) if pool is not None and p0 else None
+        self._critical = None if self._beta is not None else self._values(la.eigvals(T))
+        self.ref, self.schur, self.Z1, self.H, self._rows = f, None, None, None, None
+
+    @staticmethod
+    def _values(beta: np.ndarray) -> np.ndarray:
         finite = np.abs(beta) > INFINITE_TOL
         real = finite & (np.abs(beta.imag) <= REAL_TOL * np.abs(beta))
-        self.critical = np.sort(1.0 / beta[real].real)
-        self.poles = 1.0 / beta[finite]
-        self.ref, self.schur, self.Z1, self.H, self._rows = f, None, None, None, None
+        return np.sort(1.0 / beta[real].real)
+
+    @property
+    def critical(self) -> np.ndarray:
+        """The real critical values of the state, sorted."""
+        if self._critical is None:
+            self._critical = self._values(self._beta.result())
+        return self._critical
+
+    def singular_at(self, f: float) -> None:
+        """None: a state whose system is singular at the fixed friction is no LoadState."""
+        return None
 
     def _forces(self, du: np.ndarray, dk: np.ndarray, u0: np.ndarray) -> np.ndarray:
         """z = S (u_c - u0) for the unknown and known contact displacements du, dk."""

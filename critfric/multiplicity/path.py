@@ -127,13 +127,17 @@ def follow(problem: StaticProblem, parameter: str, span: tuple[float, float], *,
                          f"most {MAX_NODES} contact nodes)")
     # one BLAS thread for the small dense matrices of the path (as the eigen stage does)
     with threadpool_limits(1 if 2 * p < 1500 else None, user_api="blas"):
-        for z in starts:
-            explorer.seed(a, z, "start")
-        isolated = _complete(explorer, enumerate_at, values) if enumerate_at else []
+        try:
+            for z in starts:
+                explorer.seed(a, z, "start")
+            isolated = _complete(explorer, enumerate_at, values) if enumerate_at else []
+            explorer.finish()
+        finally:  # an error or Ctrl-C leaves no thread behind
+            if explorer.pool is not None:
+                explorer.pool.shutdown(cancel_futures=True)
     if isolated:
         notes.append(f"{len(isolated)} solution(s) found by the enumeration lie on no curve "
                      "that could be followed: listed as isolated")
-    explorer.finish()
     return PathResult(
         parameter=parameter, range=(a, b), curves=explorer.curves, events=explorer.events,
         n_dofs=problem.K.shape[0], n_contact=p, seconds=time.perf_counter() - started,
