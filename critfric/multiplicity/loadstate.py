@@ -60,6 +60,7 @@ class LoadState(State):
         self._beta = pool.submit(la.eigvals, T) if pool is not None and p0 else None
         self._critical = None if self._beta is not None else self._values(la.eigvals(T))
         self.ref, self.schur, self.Z1, self.H, self._rows = f, None, None, None, None
+        self._affine = self._direction = None
 
     @staticmethod
     def _values(beta: np.ndarray) -> np.ndarray:
@@ -85,13 +86,18 @@ class LoadState(State):
         return self.cz.cond.S @ (uc - u0)
 
     def solve(self, t: float) -> np.ndarray:
-        u0 = self.track.u0(t)
-        rhs = self.R @ u0 - self.R[:, self.known] @ self.uk
-        du = la.lu_solve(self.lu, rhs) if self.lu is not None else np.zeros(0)
-        return self._forces(du, self.uk, u0)
+        """z(t) = z(0) + t dz/dt: affine in the load factor (both made once)."""
+        if self._affine is None:
+            u0 = self.track.cz.u0
+            rhs = self.R @ u0 - self.R[:, self.known] @ self.uk
+            du = la.lu_solve(self.lu, rhs) if self.lu is not None else np.zeros(0)
+            self._affine = (self._forces(du, self.uk, u0), self.solve_direction())
+        return self._affine[0] + t * self._affine[1]
 
     def solve_direction(self) -> np.ndarray:
         """dz/dt: u0 moves along u0 of L1, the known displacements stay."""
-        u0b = self.track.u0b
-        du = la.lu_solve(self.lu, self.R @ u0b) if self.lu is not None else np.zeros(0)
-        return self._forces(du, np.zeros(len(self.known)), u0b)
+        if self._direction is None:
+            u0b = self.track.u0b
+            du = la.lu_solve(self.lu, self.R @ u0b) if self.lu is not None else np.zeros(0)
+            self._direction = self._forces(du, np.zeros(len(self.known)), u0b)
+        return self._direction
