@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import itertools
 from collections import OrderedDict
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -105,9 +104,6 @@ class Explorer:
         self.max_pieces = max_pieces
         self.states: OrderedDict[bytes, State] = OrderedDict()
         self.pending: list[tuple[Piece, State]] = []  # pieces whose margins are to come
-        # a load path's states find their critical values on a second thread, while this
-        # one walks on (LAPACK leaves Python's lock)
-        self.pool = ThreadPoolExecutor(1) if track.parameter == "load" else None
         self.walked = Points()  # midpoints of the pieces walked
         self.vertices = Points()  # vertices reached, with their event (or None)
         self.curves: list[Curve] = []
@@ -140,7 +136,7 @@ class Explorer:
         on its contact forces where the fixed friction is a critical value of it."""
         if self.track.parameter == "load":
             try:
-                return LoadState(self.track, code, pool=self.pool)
+                return LoadState(self.track, code)
             except Singular:
                 pass
         return State(self.track, code)
@@ -348,8 +344,7 @@ class Explorer:
 
     def _piece(self, arc: Arc, start: float | None = None) -> Piece:
         """The piece of an arc (``start``: where the piece it extends began); its critical
-        values and margin are filled in by :meth:`finish` (a load path's state computes them
-        in the background)."""
+        values and margin are filled in by :meth:`finish`."""
         t0 = arc.t0 if start is None else start
         piece = Piece([LABELS[c] for c in arc.state.code], float(t0), float(arc.t1))
         self.pending.append((piece, arc.state))

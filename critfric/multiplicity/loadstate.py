@@ -33,7 +33,7 @@ class Singular(Exception):
 class LoadState(State):
     """:class:`.arcs.State` of a load path, solved on its displacement unknowns."""
 
-    def __init__(self, track: Track, code: np.ndarray, pool=None):
+    def __init__(self, track: Track, code: np.ndarray):
         self.track, self.cz, self.code = track, track.cz, np.asarray(code, dtype=np.int8)
         cz, p = self.cz, self.cz.p
         S = cz.cond.S
@@ -52,28 +52,15 @@ class LoadState(State):
             pivots = np.abs(np.diag(self.lu[0]))
             if not pivots.min() > 1e-13 * pivots.max():
                 raise Singular
-        T = np.zeros((0, 0))
-        if p0:
+        beta = np.zeros(0)
+        if p0:  # T = gamma S_nu S_uu^-1 E, its eigenvalues 1 / alpha
             W = la.cho_solve(la.cho_factor(S[np.ix_(self.u, self.u)]), np.eye(len(self.u), p0))
-            T = self.gamma[:, None] * (S[np.ix_(self.slip, self.u)] @ W)
-        # the eigenvalues on ``pool`` if given (they are needed only for the margins)
-        self._beta = pool.submit(la.eigvals, T) if pool is not None and p0 else None
-        self._critical = None if self._beta is not None else self._values(la.eigvals(T))
-        self.ref, self.schur, self.Z1, self.H, self._rows = f, None, None, None, None
-        self._affine = self._direction = None
-
-    @staticmethod
-    def _values(beta: np.ndarray) -> np.ndarray:
+            beta = la.eigvals(self.gamma[:, None] * (S[np.ix_(self.slip, self.u)] @ W))
         finite = np.abs(beta) > INFINITE_TOL
         real = finite & (np.abs(beta.imag) <= REAL_TOL * np.abs(beta))
-        return np.sort(1.0 / beta[real].real)
-
-    @property
-    def critical(self) -> np.ndarray:
-        """The real critical values of the state, sorted."""
-        if self._critical is None:
-            self._critical = self._values(self._beta.result())
-        return self._critical
+        self.critical = np.sort(1.0 / beta[real].real)
+        self.ref, self.schur, self.Z1, self.H, self._rows = f, None, None, None, None
+        self._affine = self._direction = None
 
     def singular_at(self, f: float) -> None:
         """None: a state whose system is singular at the fixed friction is no LoadState."""

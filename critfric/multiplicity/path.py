@@ -127,14 +127,10 @@ def follow(problem: StaticProblem, parameter: str, span: tuple[float, float], *,
                          f"most {MAX_NODES} contact nodes)")
     # one BLAS thread for the small dense matrices of the path (as the eigen stage does)
     with threadpool_limits(1 if 2 * p < 1500 else None, user_api="blas"):
-        try:
-            for z in starts:
-                explorer.seed(a, z, "start")
-            isolated = _complete(explorer, enumerate_at, values) if enumerate_at else []
-            explorer.finish()
-        finally:  # an error or Ctrl-C leaves no thread behind
-            if explorer.pool is not None:
-                explorer.pool.shutdown(cancel_futures=True)
+        for z in starts:
+            explorer.seed(a, z, "start")
+        isolated = _complete(explorer, enumerate_at, values) if enumerate_at else []
+        explorer.finish()
     if isolated:
         notes.append(f"{len(isolated)} solution(s) found by the enumeration lie on no curve "
                      "that could be followed: listed as isolated")
