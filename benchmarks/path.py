@@ -15,10 +15,11 @@ size 0.0025 gives about 210 k DOFs and 401 contact nodes. Paths (``--paths``, co
 
 For each path, side by side in one run (a shared machine's load varies, so read the ratios),
 each command in a fresh process in the checkout measured, with ``--json -o tmp --force``: the
-wall time of ``critfric solve`` on the case (mesh, assembly, one factorization, the critical
-coefficients; the best of --repeat runs) and of ``critfric path``, with the seconds each
+wall and CPU time of ``critfric solve`` on the case (mesh, assembly, one factorization, the
+critical coefficients; the best of --repeat runs) and of ``critfric path``, the seconds each
 reports itself, the number of pieces (summed over the curves of the JSON) and events, and
-ratio = path wall / solve wall (the issue's budget: 1000 pieces at this scale in 3 solves).
+the ratios path / solve (the target: 1000 pieces at this scale within 3 solves). The CPU
+ratio is the steadier one where other jobs share the machine (the path runs on one thread).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -57,19 +59,20 @@ def case_text(name: str, a: argparse.Namespace) -> str:
         "[path]", *path, 'start = "newton"', f"samples = {a.samples}", ""])
 
 
-def run(root: Path, args: list[str], timeout: float) -> tuple[float, dict]:
-    """Wall seconds and the JSON summary of ``python -m critfric ARGS --json`` in a fresh
-    process. ``python -m`` puts its working directory first on sys.path: run it in the
-    checkout measured."""
+def run(root: Path, args: list[str], timeout: float) -> tuple[float, float, dict]:
+    """Wall and CPU seconds (user + system, all threads) and the JSON summary of ``python -m
+    critfric ARGS --json`` in a fresh process. ``python -m`` puts its working directory first
+    on sys.path: run it in the checkout measured."""
     env = dict(os.environ, PYTHONPATH=str(root))
-    t = time.perf_counter()
+    before, t = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "critfric", *args, "--json"], cwd=root,
-                          env=env, capture_output=True, text=True, timeout=timeout)
-    wall = time.perf_counter() - t
+                          env=env, capture_output=True, text=True, timeout=timeout, check=False)
+    wall, after = time.perf_counter() - t, resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = sum(getattr(after, k) - getattr(before, k) for k in ("ru_utime", "ru_stime"))
     if proc.returncode:
         last = (proc.stderr.strip().splitlines() or ["killed"])[-1]
         raise RuntimeError(f"critfric {args[0]} failed: {last}")
-    return wall, json.loads(proc.stdout)
+    return wall, cpu, json.loads(proc.stdout)
 
 
 def measure(root: Path, name: str, a: argparse.Namespace) -> dict:
@@ -78,13 +81,14 @@ def measure(root: Path, name: str, a: argparse.Namespace) -> dict:
         case.write_text(case_text(name, a))
         solves = [run(root, ["solve", str(case), "-o", str(Path(tmp) / "s.h5"), "--force"],
                       a.timeout) for _ in range(a.repeat)]
-        t_solve, solve = min(solves, key=lambda r: r[0])  # the best of a few: the short one
-        t_path, path = run(root, ["path", str(case), "-o", str(Path(tmp) / "p.h5"),
+        t_solve, cpu_solve, solve = min(solves, key=lambda r: r[0])  # the best of a few
+        t_path, cpu_path, path = run(root, ["path", str(case), "-o", str(Path(tmp) / "p.h5"),
                                   "--force"], a.timeout)
     kinds = [e["kind"] for e in path["events"]]
     return {"n_dofs": path["n_dofs"], "n_contact": path["n_contact"],
-            "solve": t_solve, "solve_own": solve["seconds"], "path": t_path,
-            "path_own": path["seconds"], "curves": len(path["curves"]),
+            "solve": t_solve, "solve_own": solve["seconds"], "solve_cpu": cpu_solve,
+            "path": t_path, "path_own": path["seconds"], "path_cpu": cpu_path,
+            "curves": len(path["curves"]),
             "pieces": sum(len(c["pieces"]) for c in path["curves"]),
             "events": "/".join(str(kinds.count(k)) for k in ("kink", "fold", "branch"))}
 
@@ -93,11 +97,11 @@ def revision(root: Path) -> str:
     """The commit of the checkout measured, "+ edits" if critfric/ differs from it."""
     git = ["git", "-C", str(root)]
     head = subprocess.run([*git, "rev-parse", "--short", "HEAD"], capture_output=True,
-                          text=True).stdout.strip()
+                          text=True, check=False).stdout.strip()
     if not head:
         return "not a git checkout"
     dirty = subprocess.run([*git, "status", "--porcelain", "--", "critfric"],
-                           capture_output=True, text=True).stdout.strip()
+                           capture_output=True, text=True, check=False).stdout.strip()
     return head + (" + edits" if dirty else "")
 
 
@@ -116,21 +120,23 @@ def main() -> None:
     a = ap.parse_args()
     root = Path(a.root).resolve()
     print(f"critfric from {root} ({revision(root)}); {a.element}, rectangle {a.width} x "
-          f"{a.height}, h = {a.size}, {a.samples} samples; wall seconds (the command's own)\n")
-    print("| path | DOFs | contact nodes | curves | pieces | kinks/folds/branches "
-          "| solve | path | path / piece | ratio path/solve |")
-    print("|---|---|---|---|---|---|---|---|---|---|", flush=True)
+          f"{a.height}, h = {a.size}, {a.samples} samples; seconds: wall (the command's "
+          "own) and CPU (all threads); ratio = path / solve\n")
+    print("| path | DOFs | contact nodes | curves | pieces | kinks/folds/branches | solve wall "
+          "| solve CPU | path wall | path CPU | path wall / piece | ratio wall | ratio CPU |")
+    print("|---" * 13 + "|", flush=True)
     for name in filter(None, a.paths.split(",")):
         try:
             r = measure(root, name, a)
         except (RuntimeError, subprocess.TimeoutExpired) as exc:
-            print(f"| {name} | {exc} |" + " |" * 8, flush=True)
+            print(f"| {name} | {exc} |" + " |" * 11, flush=True)
             continue
         per = r["path"] / max(r["pieces"], 1)
         print(f"| {name} | {r['n_dofs']} | {r['n_contact']} | {r['curves']} | {r['pieces']} "
-              f"| {r['events']} | {r['solve']:.2f} ({r['solve_own']:.2f}) "
-              f"| {r['path']:.1f} ({r['path_own']:.1f}) | {per:.3f} "
-              f"| {r['path'] / r['solve']:.1f} |", flush=True)
+              f"| {r['events']} | {r['solve']:.2f} ({r['solve_own']:.2f}) | {r['solve_cpu']:.2f} "
+              f"| {r['path']:.1f} ({r['path_own']:.1f}) | {r['path_cpu']:.1f} | {per:.3f} "
+              f"| {r['path'] / r['solve']:.1f} | {r['path_cpu'] / r['solve_cpu']:.1f} |",
+              flush=True)
 
 
 if __name__ == "__main__":
