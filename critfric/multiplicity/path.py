@@ -33,6 +33,7 @@ from .explore import SAME_TOL, Explorer
 from .pathresult import PathResult
 from .states import Condensed
 
+MAX_VALUE = 1e6  # |a|, |b| of a range (friction: 1 / INFINITE_TOL of the eigen stage)
 PIECE_SECONDS = 1e-10  # a piece costs about this x (2p)^3 s (401 nodes: 0.05 s measured)
 MAX_SECONDS = 3600  # refuse a path whose p pieces (one a node, at least) need longer
 MAX_STORED = 5 * 10**7  # sample values x contact nodes, the size of one curve's points
@@ -50,9 +51,10 @@ def _options(case: Case) -> dict:
         raise CaseError("missing key: the range [a, b] of the parameter ([path] range, or "
                         "--range A:B)", file=case.source, key="path.range")
     a, b = map(float, span)
-    if not a < b or (opts["parameter"] == "friction" and a < 0):
-        raise CaseError(f"got {[a, b]}; allowed: two numbers [a, b] with a < b (a >= 0 for "
-                        "the friction)", file=case.source, key="path.range")
+    if not a < b or (opts["parameter"] == "friction" and a < 0) or max(-a, b) > MAX_VALUE:
+        raise CaseError(f"got {[a, b]}; allowed: two numbers [a, b] with a < b, |a|, |b| <= "
+                        f"{MAX_VALUE:g} (a >= 0 for the friction: critical coefficients above "
+                        f"{MAX_VALUE:g} count as infinite)", file=case.source, key="path.range")
     opts["range"] = (a, b)
     return opts
 
@@ -108,7 +110,8 @@ def follow(problem: StaticProblem, parameter: str, span: tuple[float, float], *,
     a, b = span
     cond, u0 = coulomb.condense(problem)
     u0b = None if second is None else cond.solve(second.rhs)[cond.cdofs]
-    cz = Condensed.of(problem, (cond, u0), extra=() if u0b is None else (u0b,))
+    reach = max(abs(a), abs(b), 1e-300)  # the scales F, D cover the load all along the range
+    cz = Condensed.of(problem, (cond, u0), extra=() if u0b is None else (reach * u0b,))
     track = Track(cz, parameter, friction, u0b, (a, b))
     values = np.linspace(a, b, samples)
     explorer = Explorer(track, values, max_pieces)

@@ -273,6 +273,9 @@ def test_path_refuses_what_it_cannot_do(monkeypatch):
         path_case(case)
     assert err.value.key == "mesh.size"
     monkeypatch.undo()
+    with pytest.raises(CaseError, match="1e\\+06") as err:  # beyond 1e6: infinite
+        path_case(case.with_overrides({"path.range": [0.0, 1e7]}))
+    assert err.value.key == "path.range"
     eight = grid_case(nx=7, ny=1, height=1.0, skew=0.0, seed=0, parameter="friction",
                       span=(0.0, 1.0))  # 8 contact nodes: 4^8 states at each sample
     with pytest.raises(CaseError, match="at most 457 samples") as err:
