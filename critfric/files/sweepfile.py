@@ -105,20 +105,23 @@ def _rewrite(path: Path) -> Iterator[h5py.File]:
     """A copy of the file opened for writing; it replaces the file (``os.replace``, atomic)
     only once written and closed, so a process killed at any moment leaves the old file or
     the new one, never a torn one (a stray ``.<name>.*.tmp`` at worst)."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
+    tmp = None
+    try:  # the temporary file is made inside: an interrupt right after it still removes it
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        os.close(fd)
         shutil.copy(path, tmp)
         with h5py.File(tmp, "r+") as f:
             yield f
         os.replace(tmp, path)
     except OSError as exc:  # disk full, I/O error: the file keeps every point written before
-        Path(tmp).unlink(missing_ok=True)
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
         raise WriteError(f"cannot add a point to {path} ({exc.strerror or exc}); the points "
                          "written before are kept: free some space and run the sweep again "
                          "to compute only the rest") from None
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
         raise
 
 
