@@ -279,7 +279,7 @@ def read_path_summary(path: Path | str) -> dict:
                 "friction": _opt(float(a["friction"])), "n_dofs": int(a["n_dofs"]),
                 "n_contact": int(a["n_contact"]),
                 "counts": {k: int(counts.get(k, 0)) for k in COUNTS},
-                "isolated": int(len(f["isolated/value"])), "branch_points": branches,
+                "isolated": len(f["isolated/value"]), "branch_points": branches,
                 "seconds": float(a["seconds"]), "notes": text_list(a["notes"]),
             }
     except (OSError, KeyError, ValueError, TypeError, IndexError, AttributeError) as exc:

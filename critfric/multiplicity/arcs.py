@@ -68,7 +68,7 @@ class State:
 
     def __init__(self, track: Track, code: np.ndarray):
         self.track, self.cz, self.code = track, track.cz, np.asarray(code, dtype=np.int8)
-        cz, p = self.cz, self.cz.p
+        p = self.cz.p
         self.slip = np.flatnonzero((self.code == SLIP_PLUS) | (self.code == SLIP_MINUS))
         # A(f) = A0 + f E F^T: E puts y on the slip Y rows, F^T z = -gamma X_slip
         self.gamma = np.where(self.code[self.slip] == SLIP_PLUS, 1.0, -1.0)

@@ -64,7 +64,6 @@ class LoadState(State):
 
     def singular_at(self, f: float) -> None:
         """None: a state whose system is singular at the fixed friction is no LoadState."""
-        return None
 
     def _forces(self, du: np.ndarray, dk: np.ndarray, u0: np.ndarray) -> np.ndarray:
         """z = S (u_c - u0) for the unknown and known contact displacements du, dk."""
