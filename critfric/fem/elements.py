@@ -56,6 +56,8 @@ class Element:
     """Base class: subclasses set the attributes and implement :meth:`shape`.
 
     name, order  : "P1" ..., polynomial degree (1 or 2).
+    dim          : 2 (triangles, quadrilaterals) or 3 (tetrahedra, hexahedra); a name means
+                   one element per dimension (P1: the linear triangle or tetrahedron).
     n_local      : nodes of one cell; n_vertices of them are the corners, counterclockwise.
     reference    : "triangle" (0,0), (1,0), (0,1) or "quad" [-1, 1]^2.
     doflocs      : (n_local, 2) reference coordinates of the nodes.
@@ -66,6 +68,7 @@ class Element:
     """
 
     name: str
+    dim: int = 2
     n_local: int
     n_vertices: int
     order: int
@@ -212,11 +215,16 @@ ELEMENTS: dict[str, Element] = {"P1": P1(), "P2": P2(), "Q1": Q1(), "Q2": Q2()}
 NAMES = tuple(ELEMENTS)  # what a case's [mesh] element may be
 
 
-def get_element(name: str) -> Element:
-    """The element called ``name``; :class:`CaseError` listing the allowed names otherwise."""
+ELEMENTS_3D: dict[str, Element] = {}  # the 3D elements by name, filled like ELEMENTS
+
+
+def get_element(name: str, dim: int = 2) -> Element:
+    """The element called ``name`` in dimension ``dim``; :class:`CaseError` listing the
+    allowed names otherwise."""
+    table = ELEMENTS_3D if dim == 3 else ELEMENTS
     try:
-        return ELEMENTS[name]
+        return table[name]
     except (KeyError, TypeError):
-        allowed = ", ".join(ELEMENTS)
+        allowed = ", ".join(table) or "none"
         raise CaseError(f"unknown element {name!r}; allowed: {allowed}",
                         key="mesh.element") from None

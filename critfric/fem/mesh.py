@@ -11,21 +11,39 @@ from .elements import get_element
 
 @dataclass(frozen=True)
 class Mesh:
-    """A 2D finite-element mesh.
+    """A 2D or 3D finite-element mesh; its dimension is the points' second axis.
 
-    points : (n_nodes, 2) float64 node coordinates.
+    points : (n_nodes, dim) float64 node coordinates, dim 2 or 3.
     cells  : (n_cells, n_local) int64 node indices, local order as in gmsh
              (P1: 3 vertices counterclockwise; P2: 3 vertices then edge midpoints 01, 12, 20;
               Q1: 4 vertices counterclockwise; Q2: 4 vertices, midpoints 01, 12, 23, 30, centre).
     element: "P1" | "P2" | "Q1" | "Q2".
     edges  : boundary group name -> (n_facets, 2) int64 (order 1) or (n_facets, 3) (order 2:
-             end, end, midpoint) node indices of the boundary facets in that group.
+             end, end, midpoint) node indices of the boundary facets in that group (2D).
+    faces  : boundary group name -> (n_facets, facet nodes) int64 node indices of the boundary
+             faces in that group (3D: triangles or quadrilaterals, gmsh local order).
     """
 
     points: np.ndarray
     cells: np.ndarray
     element: str
     edges: dict[str, np.ndarray] = field(default_factory=dict)
+    faces: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def dim(self) -> int:
+        """2 or 3: the number of coordinates of a point."""
+        return int(np.shape(self.points)[1])
+
+    @property
+    def fe(self):
+        """The element object of this mesh (its name and dimension)."""
+        return get_element(self.element, self.dim)
+
+    @property
+    def facets(self) -> dict[str, np.ndarray]:
+        """The named boundary groups: ``edges`` in 2D, ``faces`` in 3D."""
+        return self.faces if self.dim == 3 else self.edges
 
     @property
     def n_nodes(self) -> int:
@@ -36,8 +54,9 @@ class Mesh:
         return len(self.cells)
 
     def __repr__(self) -> str:
-        return (f"Mesh({self.element}, {self.n_nodes} nodes, {self.n_cells} cells, edges "
-                f"{sorted(self.edges)})")
+        kind = "faces" if self.dim == 3 else "edges"
+        return (f"Mesh({self.element}, {self.dim}D, {self.n_nodes} nodes, {self.n_cells} cells, "
+                f"{kind} {sorted(self.facets)})")
 
     @property
     def diameter(self) -> float:
