@@ -157,9 +157,11 @@ class Explorer:
                               "CONSISTENT_TOL at every node (round-off); the path may be "
                               "incomplete there")
             return [], []
-        options = [np.flatnonzero(row) for row in ok]
-        if np.prod([len(o) for o in options], dtype=float) > MAX_STATES:
+        counts = ok.sum(axis=1)
+        if np.prod(counts, dtype=float) > MAX_STATES:
             return self._probed(t, z), []
+        _, cols = np.nonzero(ok)  # the statuses of each node, in node order
+        options = np.split(cols, np.cumsum(counts)[:-1])
         found, singular = [], []
         for code in itertools.product(*options):  # the few states that meet at a vertex
             st = self.state(code)
