@@ -150,6 +150,8 @@ class State:
             return None
         if self.track.parameter == "load":
             s_end, why = self._load_exit(t0, z0, d, lim)
+        elif self._leaves_at_once(t0, z0, d):
+            return None
         else:
             s_end, why = self._friction_exit(t0, d, lim)
         if s_end <= MIN_STEP * self.track.length:
@@ -173,6 +175,23 @@ class State:
         """dz/dt of a load path: A z' = b(u0 of L1, U^r = 0)."""
         b1 = self.cz.rhs(self.code, u0=self.track.u0b, Ur=np.zeros(self.cz.p))
         return la.lu_solve(self.lu, b1)
+
+    def _leaves_at_once(self, t0: float, z0: np.ndarray, d: int) -> bool:
+        """Whether a row active at (t0, z0) rises at once along the friction in direction d
+        (the rule of :func:`first_root` on the rows' derivatives): the piece is then empty,
+        with no search for its end. A state singular at t0 is left to the search."""
+        if self.singular_at(t0) is not None:
+            return False
+        cz, p0 = self.cz, len(self.slip)
+        dz = np.zeros_like(z0)
+        if p0:  # A(f) z' = -E F^T z, A(f)^-1 E = Z1 (I + f H)^-1
+            dz = -self.Z1 @ la.solve(np.eye(p0) + t0 * self.H, self.Ft(z0), check_finite=False)
+        zero = np.zeros_like(z0)
+        explicit = (cz.slack(self.code, 1.0, z0, u0=zero, Ur=np.zeros(cz.p))
+                    - cz.slack(self.code, 0.0, z0, u0=zero, Ur=np.zeros(cz.p)))
+        slope = d * (explicit + cz.slack(self.code, t0, dz, u0=zero, Ur=np.zeros(cz.p)))
+        active = self.slack(t0, z0) >= -2 * NOISE
+        return bool(np.any(active & (slope * self.track.length > NOISE)))
 
     def _friction_exit(self, t0, d, lim):
         end = abs(lim - t0)

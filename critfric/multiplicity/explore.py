@@ -147,9 +147,11 @@ class Explorer:
         return PathPoint(float(t), self.cz.labels(z, f, self.track.u0(t)), Un, Ut, X, Y, piece)
 
     # ------------------------------------------------------------------ arcs at a vertex
-    def arcs(self, t: float, z: np.ndarray) -> tuple[list[Arc], list[State]]:
+    def arcs(self, t: float, z: np.ndarray, known: tuple | None = None
+             ) -> tuple[list[Arc], list[State]]:
         """Every piece leaving the vertex (t, z), one per geometric piece, and the singular
-        states there."""
+        states there. ``known``: (code, d) of a piece known to leave it (the one a curve
+        arrived by, walked back), not searched again."""
         f, u0 = self.track.friction(t), self.track.u0(t)
         ok = self.cz.consistent(z, f, u0)
         if not ok.any(axis=1).all():
@@ -175,6 +177,8 @@ class Explorer:
                 if lim is None or np.abs(self.cz.norm(lim - z, 0 * u0)).max() > SAME_TOL:
                     continue
             for d in (1, -1):
+                if known is not None and d == known[1] and np.array_equal(st.code, known[0]):
+                    continue
                 end = st.exit(t, z, d)
                 if end is not None:
                     found.append(Arc(st, t, z, d, *end))
@@ -330,7 +334,7 @@ class Explorer:
             known = self._vertex(t, z)
             if known is not None and known[0] is not None:
                 self.events[known[0]].curves.append(ci)
-            arcs, singular = self.arcs(t, z)
+            arcs, singular = self.arcs(t, z, (arc.state.code, -arc.d) if arc.d else None)
             others = [a for a in arcs if np.abs(a.key - arc.key).max() > SAME_TOL]
             fresh = [a for a in others if not self._walked(a)]
             event = None if known is not None else self._event(arc, others, singular, t, ci)
