@@ -33,7 +33,7 @@ import scipy.linalg as la
 from scipy.optimize import brentq
 
 from ..solvers.eigen import INFINITE_TOL
-from .states import SLIP_MINUS, SLIP_PLUS, Condensed
+from .states import FREE, SLIP_MINUS, SLIP_PLUS, STUCK, Condensed
 
 EXACT_SLIP = 16
 GRID = 64
@@ -72,18 +72,22 @@ class State:
         self.slip = np.flatnonzero((self.code == SLIP_PLUS) | (self.code == SLIP_MINUS))
         # A(f) = A0 + f E F^T: E puts y on the slip Y rows, F^T z = -gamma X_slip
         self.gamma = np.where(self.code[self.slip] == SLIP_PLUS, 1.0, -1.0)
-        E = np.zeros((2 * p, len(self.slip)))
-        E[p + self.slip, np.arange(len(self.slip))] = 1.0
-        # one factorization: of A(fixed friction) on a load path (of A0 if that is singular:
-        # the fixed friction is a critical value of the state), of A0 on a friction path;
-        # A(f) = A(ref) + (f - ref) E F^T, singular where 1 + (f - ref) lambda = 0
-        ref = float(track.fixed) if track.parameter == "load" else 0.0
-        self.lu = la.lu_factor(self.A(ref), check_finite=False)
-        pivots = np.abs(np.diag(self.lu[0]))
-        if ref and not pivots.min() > 1e-13 * pivots.max():
-            ref, self.lu = 0.0, la.lu_factor(self.A(0.0), check_finite=False)
+        self._U1 = None  # contact displacements of the columns of Z1, where known
+        if track.parameter == "friction":
+            ref, Z1 = 0.0, self._displacement_form()
+        else:
+            # one factorization: of A(fixed friction) on a load path (of A0 if that is
+            # singular: the fixed friction is a critical value of the state); A(f) = A(ref) +
+            # (f - ref) E F^T, singular where 1 + (f - ref) lambda = 0
+            E = np.zeros((2 * p, len(self.slip)))
+            E[p + self.slip, np.arange(len(self.slip))] = 1.0
+            ref = float(track.fixed)
+            self.lu = la.lu_factor(self.A(ref), check_finite=False)
+            pivots = np.abs(np.diag(self.lu[0]))
+            if ref and not pivots.min() > 1e-13 * pivots.max():
+                ref, self.lu = 0.0, la.lu_factor(self.A(0.0), check_finite=False)
+            Z1 = la.lu_solve(self.lu, E)
         self.ref, self._rows = ref, None
-        Z1 = la.lu_solve(self.lu, E)
         self.H = self.Ft(Z1)
         self.Z1 = Z1 if track.parameter == "friction" else None  # Woodbury along the friction
         self.schur = None  # H = Z T Z^*: O(p0^2) solves at every friction of the grid
@@ -97,6 +101,39 @@ class State:
         self.poles = ref - 1.0 / lam[np.abs(lam) > INFINITE_TOL]  # complex too: for the grid
 
     # ------------------------------------------------------------------ the linear system
+    def _displacement_form(self) -> np.ndarray:
+        """A0 = A(0) of a friction path, solved on the contact displacements it leaves free
+        (the tangential one of each slipping node, both of each free node): at friction 0 the
+        rows of S on them, S_uu, symmetric positive definite (one Cholesky of size p0 +
+        2 p_free instead of an LU of size 2p). Returns Z1 = A0^-1 E, the forces of the
+        displacements M0^-1 E (E: the slipping tangential unknowns, first)."""
+        p, S = self.cz.p, self.cz.cond.S
+        free = np.flatnonzero(self.code == FREE)
+        stuck = np.flatnonzero(self.code == STUCK)
+        self.lu = None
+        self._u = np.concatenate([p + self.slip, free, p + free])
+        self._known = np.zeros(2 * p)  # U_n = 0 touching, U_t = U^r stuck, 0 elsewhere
+        self._known[p + stuck] = self.cz.Ur[stuck]
+        self._chol = (la.cho_factor(S[np.ix_(self._u, self._u)], check_finite=False)
+                      if len(self._u) else None)
+        p0 = len(self.slip)
+        if not p0:
+            return np.zeros((2 * p, 0))
+        Z = la.cho_solve(self._chol, np.eye(len(self._u), p0), check_finite=False)
+        self._U1 = np.zeros((2 * p, p0))  # C Z1 = the displacements themselves
+        self._U1[self._u] = Z
+        return S[:, self._u] @ Z
+
+    def _base(self, t: float) -> np.ndarray:
+        """A(ref)^-1 b(t): the state's solution at the reference friction."""
+        if self.lu is not None:
+            return la.lu_solve(self.lu, self.b(t))
+        S, u0 = self.cz.cond.S, self.track.u0(t)
+        uc = self._known.copy()
+        if self._chol is not None:
+            uc[self._u] = la.cho_solve(self._chol, (S @ (u0 - uc))[self._u], check_finite=False)
+        return S @ (uc - u0)
+
     def A(self, f: float) -> np.ndarray:
         A = self.cz.matrix(self.code)
         A[self.cz.p + self.slip, self.slip] = -self.gamma * f
@@ -122,10 +159,9 @@ class State:
 
     def solve(self, t: float) -> np.ndarray:
         """z(t) of a regular state."""
-        f, b = self.track.friction(t), self.b(t)
+        f, z0 = self.track.friction(t), self._base(t)
         if self.track.parameter == "load":
-            return la.lu_solve(self.lu, b)
-        z0 = la.lu_solve(self.lu, b)
+            return z0
         y = la.solve(np.eye(len(self.slip)) + f * self.H, self.Ft(z0), check_finite=False)
         return z0 - f * self.Z1 @ y
 
@@ -210,11 +246,12 @@ class State:
         """The rows as g(f) = a + f b - f (P + f Q) y(f), (I + f H) y = q: the same at every
         t0 of a friction path (the load is fixed), so made once per state."""
         if self._rows is None:
-            z0 = la.lu_solve(self.lu, self.b(t0))
+            z0 = self._base(t0)
             cz, u0 = self.cz, self.track.u0(t0)
             a = cz.slack(self.code, 0.0, z0, u0=u0)
+            U1 = None if self._U1 is None else self._U1.T
             linear = lambda f: cz.slack(self.code, f, self.Z1.T, u0=np.zeros_like(z0),
-                                        Ur=np.zeros(cz.p)).T
+                                        Ur=np.zeros(cz.p), uc=U1).T
             P = linear(0.0)
             self._rows = (a, cz.slack(self.code, 1.0, z0, u0=u0) - a, P, linear(1.0) - P,
                           self.Ft(z0))
@@ -352,7 +389,7 @@ class State:
     def limit(self, f: float) -> np.ndarray | None:
         """The limit of z at the critical value f where the pole is removable, else None."""
         lam, V = la.eig(self.H)
-        z0 = la.lu_solve(self.lu, self.b(f))
+        z0 = self._base(f)
         w = la.solve(V, self.Ft(z0))
         at = np.abs(1.0 + f * lam) <= SINGULAR_TOL * np.maximum(np.abs(f * lam), 1.0)
         residue = np.abs(self.Z1 @ (V[:, at] * w[at])).max(initial=0.0) * abs(f)

@@ -62,9 +62,10 @@ class Condensed:
         D = max(*(np.abs(u).max() for u in loads), np.abs(Ur).max(), F / r)
         return cls(C, u0, Ur, r, F, D, cond, problem)
 
-    def contact(self, z: np.ndarray, u0=None):
-        """(U_n, U_t, X, Y) of contact forces z (..., 2p) (``u0``: another load's u0)."""
-        u = (self.u0 if u0 is None else u0) + z @ self.C.T
+    def contact(self, z: np.ndarray, u0=None, uc=None):
+        """(U_n, U_t, X, Y) of contact forces z (..., 2p) (``u0``: another load's u0;
+        ``uc``: the displacements C z where already known)."""
+        u = (self.u0 if u0 is None else u0) + (z @ self.C.T if uc is None else uc)
         p = self.p
         return u[..., :p], u[..., p:], z[..., :p], z[..., p:]
 
@@ -126,10 +127,11 @@ class Condensed:
         return G, h, np.concatenate([nodes, s, s, k])
 
     def slack(self, code: np.ndarray, friction: float, z: np.ndarray, *, u0=None,
-              Ur=None) -> np.ndarray:
+              Ur=None, uc=None) -> np.ndarray:
         """G z - h of :meth:`inequalities` (same rows) from node values, for z (..., 2p):
-        linear in (z, u0, U^r) together, so u0 = U^r = 0 gives the rows' linear part."""
-        Un, Ut, X, Y = self.contact(z, u0)
+        linear in (z, u0, U^r) together, so u0 = U^r = 0 gives the rows' linear part
+        (``uc``: C z where already known)."""
+        Un, Ut, X, Y = self.contact(z, u0, uc)
         Ur = self.Ur if Ur is None else Ur
         stuck, slip = code == STUCK, (code == SLIP_PLUS) | (code == SLIP_MINUS)
         g = np.where(code == SLIP_PLUS, 1.0, -1.0)
