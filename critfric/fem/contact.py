@@ -4,6 +4,8 @@
 :class:`ContactSystem`: the stiffness restricted to the free DOFs (Dirichlet DOFs removed),
 written in a basis where each contact node has a normal and a tangential DOF. Changing the
 Poisson ratio then costs one linear combination ``lam * K_lam + G * K_G``, no re-assembly.
+The same type holds a 3D system (:mod:`.contact3d`): there each contact node has a normal, a
+slip (s) and a third (e = n x s) DOF.
 """
 
 from __future__ import annotations
@@ -15,7 +17,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import CaseError
-from .elements import get_element
 from .mesh import Mesh
 
 FREE, STUCK, SLIP = 0, 1, 2  # contact status of a node (I_f, I_s, I_c)
@@ -26,15 +27,18 @@ STRAIGHT_TOL = 1e-9  # relative distance to the line allowed on a straight Gamma
 class ContactSystem:
     """Stiffness parts on the free DOFs, with contact DOFs in the (n, t) basis.
 
-    free    : (m,) global DOF indices (2 * node + component) that are not Dirichlet.
-    nodes   : (p,) contact node indices, sorted along the tangent t.
-    normal, tangent : outward unit normal n of Gamma_C and t = (-n2, n1).
+    free    : (m,) global DOF indices (dim * node + component) that are not Dirichlet.
+    nodes   : (p,) contact node indices, sorted along the tangent t (3D: along t1, then t2).
+    normal, tangent : outward unit normal n of Gamma_C and t = (-n2, n1) (3D: t1, the
+              direction of slip angle 0, :func:`.contact3d.plane_axes`).
     cn, ct  : (p,) positions, within the free DOFs, of the normal and tangential DOF of each
-              contact node.
+              contact node (3D: the DOF along the node's slip direction s).
     K_lam, K_G : (m, m) CSR parts, K = lam * K_lam + G * K_G.
     fixed   : (d,) global DOF indices of the Dirichlet nodes (xy components).
     D_lam, D_G : (m, d) CSR parts of the coupling of the free DOFs (rows, n/t basis) to the
               Dirichlet DOFs (columns): prescribed values u_D add -K_FD u_D to the load.
+    ce      : 3D only: (p,) positions of the DOF along e = n x s of each contact node.
+    slip    : 3D only: (p, 3) unit slip directions s in the contact plane.
     """
 
     mesh: Mesh
@@ -49,6 +53,20 @@ class ContactSystem:
     fixed: np.ndarray | None = None
     D_lam: sp.csr_matrix | None = None
     D_G: sp.csr_matrix | None = None
+    ce: np.ndarray | None = None
+    slip: np.ndarray | None = None
+
+    @property
+    def dim(self) -> int:
+        """2 or 3, the mesh's dimension."""
+        return self.mesh.dim
+
+    @property
+    def frames(self) -> np.ndarray:
+        """(p, dim, dim): the contact basis of each node as rows, (n, t) or (n, s, e)."""
+        if self.slip is None:
+            return np.broadcast_to(np.stack([self.normal, self.tangent]), (len(self.nodes), 2, 2))
+        return contact_frames(self.normal, self.slip)
 
     @property
     def n_dofs(self) -> int:
@@ -77,9 +95,12 @@ class ContactSystem:
         return (lam * A + G * B).tocsr()
 
     def restrict(self, A: sp.spmatrix) -> sp.csr_matrix:
-        """A matrix over all 2 * n_nodes xy DOFs (a mass matrix, say) -> its free-DOF block in
-        the n/t basis, as the stiffness parts are."""
-        Q = rotation(self.mesh.n_nodes, self.nodes, self.normal, self.tangent)
+        """A matrix over all dim * n_nodes xy(z) DOFs (a mass matrix, say) -> its free-DOF
+        block in the contact basis, as the stiffness parts are."""
+        if self.dim == 3:
+            Q = frame_rotation(self.mesh.n_nodes, self.nodes, self.frames)
+        else:
+            Q = rotation(self.mesh.n_nodes, self.nodes, self.normal, self.tangent)
         return (Q.T @ sp.csr_matrix(A) @ Q).tocsr()[self.free][:, self.free].tocsr()
 
     def coupling(self, lam: float, G: float) -> sp.csr_matrix:
@@ -87,18 +108,29 @@ class ContactSystem:
         return (lam * self.D_lam + G * self.D_G).tocsr()
 
     def from_xy(self, full: np.ndarray) -> np.ndarray:
-        """Nodal vector(s) (..., 2 * n_nodes) in xy -> free-DOF vector(s) in the n/t basis."""
-        u = np.array(full, dtype=float).reshape(np.shape(full)[:-1] + (self.mesh.n_nodes, 2))
+        """Nodal vector(s) (..., dim * n_nodes) in xy(z) -> free-DOF vector(s) in the contact
+        basis."""
+        u = np.array(full, dtype=float).reshape(np.shape(full)[:-1]
+                                                + (self.mesh.n_nodes, self.dim))
+        if self.dim == 3:
+            u[..., self.nodes, :] = np.einsum("pba,...pa->...pb", self.frames,
+                                              u[..., self.nodes, :])
+            return u.reshape(np.shape(full))[..., self.free]
         c = u[..., self.nodes, :].copy()
         u[..., self.nodes, 0], u[..., self.nodes, 1] = c @ self.normal, c @ self.tangent
         return u.reshape(np.shape(full))[..., self.free]
 
     def to_xy(self, u_free: np.ndarray) -> np.ndarray:
-        """Free-DOF vector(s) in the n/t basis -> nodal displacements (..., n_nodes, 2)."""
+        """Free-DOF vector(s) in the contact basis -> nodal displacements (..., n_nodes, dim)."""
         u_free = np.asarray(u_free)
-        full = np.zeros(u_free.shape[:-1] + (2 * self.mesh.n_nodes,), dtype=u_free.dtype)
+        d = self.dim
+        full = np.zeros(u_free.shape[:-1] + (d * self.mesh.n_nodes,), dtype=u_free.dtype)
         full[..., self.free] = u_free
-        u = full.reshape(u_free.shape[:-1] + (self.mesh.n_nodes, 2))
+        u = full.reshape(u_free.shape[:-1] + (self.mesh.n_nodes, d))
+        if d == 3:
+            u[..., self.nodes, :] = np.einsum("pba,...pb->...pa", self.frames,
+                                              u[..., self.nodes, :])
+            return u
         un, ut = u[..., self.nodes, 0].copy(), u[..., self.nodes, 1].copy()
         u[..., self.nodes, :] = (un[..., None] * self.normal + ut[..., None] * self.tangent)
         return u
@@ -126,7 +158,7 @@ def contact_geometry(mesh: Mesh, contact: list[str], dirichlet_nodes: np.ndarray
     # Orient n outwards: cells with an edge on Gamma_C lie on the inner side.
     on = np.zeros(mesh.n_nodes, dtype=bool)
     on[on_line] = True
-    touching = on[mesh.cells[:, :get_element(mesh.element).n_vertices]].sum(axis=1) >= 2
+    touching = on[mesh.cells[:, :mesh.fe.n_vertices]].sum(axis=1) >= 2
     side = (mesh.points[mesh.cells[touching]].mean(axis=1) - start) @ normal
     if touching.sum() == 0 or not (np.all(side > 0) or np.all(side < 0)):
         raise CaseError(f"edges {contact} are not on the boundary of the body (cells on both "
@@ -158,6 +190,29 @@ def rotation(n_nodes: int, nodes: np.ndarray, normal, tangent) -> sp.csr_matrix:
             vals.append(np.full(len(nodes), (normal, tangent)[b][a]))
     return sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                          shape=(2 * n_nodes, 2 * n_nodes)).tocsr()
+
+
+def contact_frames(normal: np.ndarray, slip: np.ndarray) -> np.ndarray:
+    """(p, 3, 3): the rows n, s_i, e_i = n x s_i of each contact node (a rotation, det +1)."""
+    n = np.broadcast_to(normal, np.shape(slip))
+    return np.stack([n, slip, np.cross(n, slip)], axis=1)
+
+
+def frame_rotation(n_nodes: int, nodes: np.ndarray, frames: np.ndarray) -> sp.csr_matrix:
+    """Q with u_xyz = Q u_local over dim * n_nodes DOFs: the identity, except at each contact
+    node i the block whose column b is its basis vector ``frames[i, b]``."""
+    p, d = len(nodes), frames.shape[1]
+    keep = np.ones(d * n_nodes, dtype=bool)
+    keep[(d * np.asarray(nodes)[:, None] + np.arange(d)).ravel()] = False
+    base = d * np.asarray(nodes)[:, None, None]
+    rows = np.broadcast_to(base + np.arange(d)[:, None], (p, d, d))  # [i, a, b]: xyz a
+    cols = np.broadcast_to(base + np.arange(d)[None, :], (p, d, d))  # basis vector b
+    vals = np.swapaxes(frames, 1, 2)
+    dofs = np.flatnonzero(keep)
+    return sp.coo_matrix((np.concatenate([np.ones(len(dofs)), vals.ravel()]),
+                          (np.concatenate([dofs, rows.ravel()]),
+                           np.concatenate([dofs, cols.ravel()]))),
+                         shape=(d * n_nodes, d * n_nodes)).tocsr()
 
 
 def rotated(K: sp.spmatrix, nodes: np.ndarray, normal, tangent, *others) -> list:
@@ -228,14 +283,17 @@ def _split_free(mats: list, fixed: np.ndarray) -> list:
 class Layout:
     """Which DOFs a contact system keeps, known from the mesh alone (before any assembly).
 
-    nodes, normal, tangent : as in :class:`ContactSystem`.
-    fixed : (2 * n_nodes,) mask of the Dirichlet DOFs.
+    nodes, normal, tangent, slip : as in :class:`ContactSystem`.
+    fixed : (dim * n_nodes,) mask of the Dirichlet DOFs.
+    dim   : 2 or 3.
     """
 
     nodes: np.ndarray
     normal: np.ndarray
     tangent: np.ndarray
     fixed: np.ndarray
+    dim: int = 2
+    slip: np.ndarray | None = None
 
     @cached_property
     def free(self) -> np.ndarray:
@@ -244,7 +302,7 @@ class Layout:
 
     @cached_property
     def position(self) -> np.ndarray:
-        """(2 * n_nodes,) position of each DOF within the free DOFs (-1: Dirichlet)."""
+        """(dim * n_nodes,) position of each DOF within the free DOFs (-1: Dirichlet)."""
         position = np.full(len(self.fixed), -1, dtype=np.int64)
         position[self.free] = np.arange(len(self.free))
         return position
@@ -252,8 +310,8 @@ class Layout:
     @property
     def contact_dofs(self) -> np.ndarray:
         """Positions within the free DOFs of the normal, then the tangential, contact DOFs
-        (``cn`` then ``ct`` of the contact system)."""
-        return np.concatenate([self.position[2 * self.nodes], self.position[2 * self.nodes + 1]])
+        (``cn`` then ``ct`` of the contact system; then ``ce`` in 3D)."""
+        return np.concatenate([self.position[self.dim * self.nodes + k] for k in range(self.dim)])
 
 
 def contact_layout(mesh: Mesh, *, contact: list[str], dirichlet: list[str],

@@ -7,7 +7,8 @@ orientation, its gmsh cell and facet types, shape functions and gradients on the
 reference cell, and a quadrature rule that integrates the stiffness integrand exactly on
 straight-sided triangles (P1, P2) and parallelograms (Q1, Q2). Reference cells: the triangle
 (0,0), (1,0), (0,1) and the square [-1, 1]^2. Facets (edges) use the interval [-1, 1] with
-local nodes ordered end, end, midpoint.
+local nodes ordered end, end, midpoint. The 3D elements (tetrahedra, hexahedra) are in
+:mod:`.solids`, which registers them into ``ELEMENTS_3D``.
 """
 
 from __future__ import annotations
@@ -58,12 +59,14 @@ class Element:
     name, order  : "P1" ..., polynomial degree (1 or 2).
     dim          : 2 (triangles, quadrilaterals) or 3 (tetrahedra, hexahedra); a name means
                    one element per dimension (P1: the linear triangle or tetrahedron).
-    n_local      : nodes of one cell; n_vertices of them are the corners, counterclockwise.
-    reference    : "triangle" (0,0), (1,0), (0,1) or "quad" [-1, 1]^2.
-    doflocs      : (n_local, 2) reference coordinates of the nodes.
-    edges        : (n_vertices, 2 or 3) local nodes of each edge: end, end[, midpoint].
+    n_local      : nodes of one cell; n_vertices of them are the corners (in 2D
+                   counterclockwise).
+    reference    : "triangle" (0,0), (1,0), (0,1) or "quad" [-1, 1]^2; in 3D "tetrahedron"
+                   or "hexahedron" (:mod:`.solids`).
+    doflocs      : (n_local, dim) reference coordinates of the nodes.
+    edges        : (n_edges, 2 or 3) local nodes of each edge: end, end[, midpoint].
     flip         : local permutation reversing a cell's orientation (vertex 0 kept, midpoints
-                   follow their edge).
+                   follow their edge, face and cell centres their face and cell).
     gmsh_cell    : gmsh element type of a cell; gmsh_facet: of a boundary facet.
     """
 
@@ -85,11 +88,14 @@ class Element:
         return self.order + 1
 
     def shape(self, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Values (n_local, n_qp) and reference gradients (n_local, n_qp, 2) at ``xi`` (n_qp, 2)."""
+        """Values (n_local, n_qp) and reference gradients (n_local, n_qp, dim) at ``xi``
+        (n_qp, dim)."""
         raise NotImplementedError
 
     def quadrature(self) -> tuple[np.ndarray, np.ndarray]:
-        """Points (n_qp, 2) and weights (n_qp,) on the reference cell."""
+        """Points (n_qp, dim) and weights (n_qp,) on the reference cell, exact for the
+        stiffness integrand on straight-sided cells (simplices, parallelograms or
+        parallelepipeds)."""
         raise NotImplementedError
 
     def mass_quadrature(self) -> tuple[np.ndarray, np.ndarray]:
@@ -215,7 +221,7 @@ ELEMENTS: dict[str, Element] = {"P1": P1(), "P2": P2(), "Q1": Q1(), "Q2": Q2()}
 NAMES = tuple(ELEMENTS)  # what a case's [mesh] element may be
 
 
-ELEMENTS_3D: dict[str, Element] = {}  # the 3D elements by name, filled like ELEMENTS
+ELEMENTS_3D: dict[str, Element] = {}  # the 3D elements by name, filled by .solids
 
 
 def get_element(name: str, dim: int = 2) -> Element:

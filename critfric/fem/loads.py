@@ -6,7 +6,7 @@ import numpy as np
 
 from ..errors import CaseError
 from .assembly import cell_geometry
-from .elements import facet_quadrature, facet_shape, get_element
+from .elements import facet_quadrature, facet_shape
 from .mesh import Mesh
 
 
@@ -25,7 +25,7 @@ def traction_load(mesh: Mesh, edge_name: str, traction) -> np.ndarray:
 
 def body_force_load(mesh: Mesh, f) -> np.ndarray:
     """Consistent nodal load (2 * n_nodes,) of a constant body force ``f`` (force / area)."""
-    element = get_element(mesh.element)
+    element = mesh.fe
     xi, w = element.quadrature()
     values, det, _ = cell_geometry(mesh, xi)
     weights = np.einsum("cq,q,aq->ca", det, w, values)  # int N_a dx per cell node
@@ -42,7 +42,7 @@ def _scatter(n_nodes: int, nodes: np.ndarray, weights: np.ndarray, vector) -> np
 
 def boundary_facets(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
     """Every boundary facet (k, 2) or (k, 3) (end, end[, mid]) and its outward unit normal."""
-    local = get_element(mesh.element).edges  # (n_vertices, end end[ mid])
+    local = mesh.fe.edges  # (n_vertices, end end[ mid])
     facets = np.asarray(mesh.cells)[:, local].reshape(-1, local.shape[1])
     keys = np.sort(facets[:, :2], axis=1)
     _, inverse, count = np.unique(keys, axis=0, return_inverse=True, return_counts=True)

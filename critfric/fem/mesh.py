@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import solids  # noqa: F401  (registers the 3D elements that Mesh.fe looks up)
 from .elements import get_element
 
 
@@ -16,7 +17,8 @@ class Mesh:
     points : (n_nodes, dim) float64 node coordinates, dim 2 or 3.
     cells  : (n_cells, n_local) int64 node indices, local order as in gmsh
              (P1: 3 vertices counterclockwise; P2: 3 vertices then edge midpoints 01, 12, 20;
-              Q1: 4 vertices counterclockwise; Q2: 4 vertices, midpoints 01, 12, 23, 30, centre).
+              Q1: 4 vertices counterclockwise; Q2: 4 vertices, midpoints 01, 12, 23, 30, centre;
+              3D: tetrahedra and hexahedra of positive volume, see :mod:`.solids`).
     element: "P1" | "P2" | "Q1" | "Q2".
     edges  : boundary group name -> (n_facets, 2) int64 (order 1) or (n_facets, 3) (order 2:
              end, end, midpoint) node indices of the boundary facets in that group (2D).
@@ -61,13 +63,16 @@ class Mesh:
     @property
     def diameter(self) -> float:
         """h: the largest cell diameter (longest distance between two vertices of a cell)."""
-        nv = get_element(self.element).n_vertices
-        x, y = (np.ascontiguousarray(self.points[:, k]) for k in range(2))
-        largest = 0.0  # each vertex pair once, one coordinate at a time (no (n, nv, 2) copy)
+        nv = self.fe.n_vertices
+        coords = [np.ascontiguousarray(self.points[:, k]) for k in range(self.dim)]
+        largest = 0.0  # each vertex pair once, one coordinate at a time (no (n, nv, dim) copy)
         for a, b in zip(*np.triu_indices(nv, k=1)):
             i, j = self.cells[:, a], self.cells[:, b]
-            dx, dy = x[i] - x[j], y[i] - y[j]
-            largest = max(largest, float((dx * dx + dy * dy).max()))
+            squared = 0.0
+            for x in coords:
+                d = x[i] - x[j]
+                squared = squared + d * d
+            largest = max(largest, float(squared.max()))
         return float(np.sqrt(largest))
 
     def edge_nodes(self, names) -> np.ndarray:
@@ -84,15 +89,32 @@ def shoelace(vertices: np.ndarray) -> np.ndarray:
         return 0.5 * np.sum(v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0], axis=-1)
 
 
+def signed_volumes(points: np.ndarray, cells: np.ndarray, element: str) -> np.ndarray:
+    """Signed volume (n_cells,) of each 3D cell's vertex tetrahedron or trilinear hexahedron
+    (``points`` (n, 3)): positive when the vertices are ordered like the reference cell's."""
+    spec = get_element(element, 3)
+    linear = get_element("P1" if spec.reference == "tetrahedron" else "Q1", 3)
+    xi, w = linear.quadrature()  # exact for det J of the affine or trilinear map
+    _, dref = linear.shape(xi)  # (n_vertices, n_qp, 3)
+    X = np.asarray(points, dtype=np.float64)[np.asarray(cells)[:, :spec.n_vertices]]
+    columns = [np.einsum("cvi,vq->cqi", X, dref[:, :, j]) for j in range(3)]  # d x / d xi_j
+    det = np.einsum("cqi,cqi->cq", columns[0], np.cross(columns[1], columns[2]))
+    return det @ w
+
+
 def signed_areas(points: np.ndarray, cells: np.ndarray, element: str) -> np.ndarray:
-    """Shoelace area of each cell's vertex polygon (positive when counterclockwise)."""
+    """Signed measure (n_cells,) of each cell: in 2D the shoelace area of its vertex polygon
+    (positive when counterclockwise), in 3D (``points`` (n, 3)) its :func:`signed_volumes`."""
+    if np.shape(points)[1] == 3:
+        return signed_volumes(points, cells, element)
     return shoelace(points[cells[:, :get_element(element).n_vertices]])
 
 
 def orient(points, cells, element):
-    """Cells reordered counterclockwise, and their (signed-before-flip) areas."""
+    """Cells reordered to positive orientation (counterclockwise in 2D, positive volume in
+    3D) by the element's ``flip``, and their (signed-before-flip) areas or volumes."""
     area = signed_areas(points, cells, element)
     cells = cells.copy()
-    cw = area < 0
-    cells[cw] = cells[cw][:, get_element(element).flip]
+    negative = area < 0
+    cells[negative] = cells[negative][:, get_element(element, np.shape(points)[1]).flip]
     return cells, area

@@ -1,10 +1,11 @@
-"""The sparsity pattern of a vector (two DOFs a node) finite-element matrix, built once from
-the cells, and CSR assembly into it by index arithmetic (no COO sum of duplicates).
+"""The sparsity pattern of a vector (dim DOFs a node, dim = 2 or 3) finite-element matrix,
+built once from the cells, and CSR assembly into it by index arithmetic (no COO sum of
+duplicates).
 
 Node level first: row i of the node pattern holds every node sharing a cell with i, columns
-sorted (the lower neighbours, i itself, the upper ones). Each entry (i, j) is a 2 x 2 block
-of the DOF matrix (interleaved DOFs 2i, 2i + 1): DOF rows 2i and 2i + 1 each hold the two
-columns 2j, 2j + 1 of every neighbour j, in the node order. One sort of the distinct node
+sorted (the lower neighbours, i itself, the upper ones). Each entry (i, j) is a dim x dim
+block of the DOF matrix (interleaved DOFs dim i + k, k < dim): each DOF row dim i + k holds
+the dim columns dim j + m of every neighbour j, in the node order. One sort of the distinct node
 pairs of the cells (a < b) locates every cell's node pair in that pattern; assembling is then
 one ``bincount`` per block component, in cell order.
 """
@@ -16,13 +17,14 @@ import scipy.sparse as sp
 
 
 class BlockPattern:
-    """The node-block CSR pattern of ``cells`` (n_cells, n_local) over ``n_nodes`` nodes.
+    """The node-block CSR pattern of ``cells`` (n_cells, n_local) over ``n_nodes`` nodes,
+    ``dim`` x ``dim`` blocks (node i has DOFs dim i + k).
 
     where : (n_cells, n_local, n_local) position, in the node pattern, of the block of
             cell c's local node pair (a, b).
     """
 
-    def __init__(self, cells: np.ndarray, n_nodes: int):
+    def __init__(self, cells: np.ndarray, n_nodes: int, dim: int = 2):
         cells = np.asarray(cells, dtype=np.int64)
         n_cells, nl = cells.shape
         n = int(n_nodes)
@@ -50,23 +52,25 @@ class BlockPattern:
         in_upper, in_lower = upper[inverse], lower[inverse]
         ab = np.where(u < v, in_upper, in_lower)  # (u, v) is in row u
         where[:, a, b], where[:, b, a] = ab, in_upper + in_lower - ab
-        self.where, self.n_nodes, self.nnz = where, n, int(ptr[-1])
+        self.where, self.n_nodes, self.nnz, self.dim = where, n, int(ptr[-1]), int(dim)
 
-        # DOF level: block q of node row i starts at 4 ptr[i] + 2 (q - ptr[i]) in DOF row 2i;
-        # DOF row 2i + 1 starts 2 degree[i] entries later
+        # DOF level (d = dim): block q of node row i starts at d^2 ptr[i] + d (q - ptr[i]) in
+        # DOF row d i; DOF row d i + k starts k d degree[i] entries later
+        d = self.dim
         row = np.repeat(np.arange(n), degree)
-        start, row_length = 2 * (np.arange(self.nnz) + ptr[row]), 2 * degree[row]
+        start, row_length = d * (np.arange(self.nnz) + (d - 1) * ptr[row]), d * degree[row]
         del row
-        self._at = [[start + k * row_length + m for m in range(2)] for k in range(2)]
+        self._at = [[start + k * row_length + m for m in range(d)] for k in range(d)]
         del start, row_length
-        itype = np.int32 if 4 * self.nnz < np.iinfo(np.int32).max else np.int64
-        indptr = np.empty(2 * n + 1, dtype=itype)
-        indptr[0:-1:2], indptr[1::2] = 4 * ptr[:-1], 4 * ptr[:-1] + 2 * degree
-        indptr[-1] = 4 * ptr[-1]
-        indices = np.empty(4 * self.nnz, dtype=itype)
-        for k in range(2):
-            for m in range(2):
-                indices[self._at[k][m]] = 2 * col + m
+        itype = np.int32 if d * d * self.nnz < np.iinfo(np.int32).max else np.int64
+        indptr = np.empty(d * n + 1, dtype=itype)
+        for k in range(d):
+            indptr[k:-1:d] = d * d * ptr[:-1] + k * d * degree
+        indptr[-1] = d * d * ptr[-1]
+        indices = np.empty(d * d * self.nnz, dtype=itype)
+        for k in range(d):
+            for m in range(d):
+                indices[self._at[k][m]] = d * col + m
         self.indptr, self.indices = indptr, indices
 
     def block_sums(self, values: np.ndarray) -> np.ndarray:
@@ -74,13 +78,14 @@ class BlockPattern:
         return np.bincount(self.where.ravel(), weights=values.ravel(), minlength=self.nnz)
 
     def csr(self, blocks) -> sp.csr_matrix:
-        """The DOF matrix (2 n_nodes square, sorted indices) whose 2 x 2 block q has entries
-        ``blocks[k][m][q]`` (k: row component, m: column component)."""
-        data = np.empty(4 * self.nnz)
-        for k in range(2):
-            for m in range(2):
+        """The DOF matrix (dim n_nodes square, sorted indices) whose dim x dim block q has
+        entries ``blocks[k][m][q]`` (k: row component, m: column component)."""
+        d = self.dim
+        data = np.empty(d * d * self.nnz)
+        for k in range(d):
+            for m in range(d):
                 data[self._at[k][m]] = blocks[k][m]
-        n = 2 * self.n_nodes
+        n = d * self.n_nodes
         A = sp.csr_matrix((data, self.indices.copy(), self.indptr.copy()), shape=(n, n))
         A.has_sorted_indices = True
         return A

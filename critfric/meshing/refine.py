@@ -47,7 +47,7 @@ def split(mesh: Mesh) -> Mesh:
     """One uniform refinement of an order-1 mesh (P1 or Q1): every edge halved, every
     triangle into 4, every quad into 4 around its centre (the mean of its corners); boundary
     facets (a, b) become (a, m), (m, b)."""
-    spec = get_element(mesh.element)
+    spec = mesh.fe
     points, cells = mesh.points, np.asarray(mesh.cells, dtype=np.int64)
     n, nc = len(points), len(cells)
     directed, first, inverse, _ = edge_table(cells, n, spec.edges)

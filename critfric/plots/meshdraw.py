@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..fem.elements import get_element
-
 # linear sub-triangles of each element's cell, through its P2/Q2 nodes
 _TRIS = {"P1": [(0, 1, 2)], "P2": [(0, 3, 5), (3, 1, 4), (5, 4, 2), (3, 4, 5)],
          "Q1": [(0, 1, 2), (0, 2, 3)],
@@ -20,7 +18,7 @@ def triangles(mesh) -> np.ndarray:
 
 def segments(mesh, points) -> np.ndarray:
     """Every cell edge as straight segments (a P2/Q2 edge as two, through its midpoint)."""
-    local = get_element(mesh.element).edges
+    local = mesh.fe.edges
     if local.shape[1] == 3:
         local = local[:, [0, 2, 2, 1]].reshape(-1, 2)
     pairs = np.asarray(mesh.cells)[:, local].reshape(-1, 2)
