@@ -20,6 +20,7 @@ from .case.schema import Case, as_case
 from .errors import CaseError
 from .fem.assembly import assemble_elasticity, lame
 from .fem.contact import ContactSystem, check_held, contact_layout, contact_system
+from .fem.contact3d import contact_layout3d, contact_system3d, slip_directions
 from .fem.elements import get_element
 from .fem.mesh import Mesh
 from .fem.pattern import upper_pattern
@@ -27,9 +28,10 @@ from .guards import check_dofs, polygon_footprint
 from .meshing.geometry import parallelogram, polygon, rectangle, validate
 from .meshing.gmshfile import check_file, file_mesh
 from .meshing.mesh import build_mesh, inline_mesh
+from .meshing.solid import check_solid, is_solid, solid_mesh
 from .meshing.singular import contact_run, singular_points, state_junctions
 from .solvers import eigen
-from .solvers.from_case import contact_state
+from .solvers.from_case import check_dimension, contact_state, plane_positions, slip_angles
 
 
 @dataclass
@@ -41,6 +43,8 @@ class Prepared:
     seconds: dict[str, float]
     made_from: dict = field(default_factory=dict)  # the case sections that made the mesh
     plan: Any = field(default=None, repr=False)  # eigen.plan_dense of the stiffness, used once
+    parts: Any = field(default=None, repr=False)  # 3D: (K_lam, K_G) in xyz, to turn the slip
+    slip: Any = None  # 3D: the slip directions' inputs the system was made with
 
     def __repr__(self) -> str:
         return (f"Prepared({self.mesh!r}, {self.system.n_dofs} DOFs, "
@@ -83,6 +87,20 @@ class Result:
     notes: list[str] = field(default_factory=list)
     backend: str = "scipy"  # sparse linear solver used (critfric.solvers.backends)
     complete: bool = True  # every eigenvalue found (False: ARPACK, complete within a radius)
+    r: np.ndarray | None = None  # 3D: r of each eigenvalue of alpha (0: an exact static branch)
+    law: str = "rate"  # 3D: the law of the slip direction
+    slip_angle: float = 0.0  # 3D: [solve] slip_angle
+
+    @property
+    def dim(self) -> int:
+        return self.mesh.dim
+
+    def r_of(self, values: np.ndarray) -> np.ndarray:
+        """r of the eigenvalues ``values`` (of ``positive`` or ``negative``); 3D only."""
+        if self.r is None or not len(values):
+            return np.zeros(len(values))
+        at = np.abs(self.alpha[None, :] - np.asarray(values)[:, None]).argmin(axis=1)
+        return np.asarray(self.r)[at]
 
     @property
     def n_contact(self) -> int:
@@ -121,6 +139,10 @@ class Result:
             "complete": self.complete,
             "seconds": round(self.seconds, 4),
             "warnings": list(self.warnings),
+            **({"dim": 3, "law": self.law, "slip_angle": self.slip_angle,
+                "r_positive": [float(x) for x in self.r_of(self.positive)],
+                "r_negative": [float(x) for x in self.r_of(self.negative)]}
+               if self.dim == 3 else {}),
         }
 
 
@@ -193,6 +215,8 @@ def preflight(case: Case, *, max_dofs: int | None = None, trust_geo: bool = Fals
     shape = case.geometry["shape"]
     if shape == "file":
         check_file(case, trust_geo=trust_geo)
+    elif is_solid(case):
+        check_solid(case, max_dofs=max_dofs)
     elif shape != "mesh":
         _checked_polygon(case, max_dofs)
 
@@ -200,6 +224,8 @@ def preflight(case: Case, *, max_dofs: int | None = None, trust_geo: bool = Fals
 def make_mesh(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False) -> Mesh:
     """The mesh of a case; gmsh shapes pass the resource guard first (:mod:`.guards`)."""
     g, m = case.geometry, case.mesh
+    if is_solid(case):
+        return solid_mesh(case, max_dofs=max_dofs)
     if g["shape"] == "mesh":
         cells = g["triangles"] if g["triangles"] is not None else g["quads"]
         return inline_mesh(np.asarray(g["nodes"], dtype=float), np.asarray(cells),
@@ -229,15 +255,16 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
         mesh = make_mesh(case, max_dofs=max_dofs, trust_geo=trust_geo)
     except CaseError as exc:
         raise exc.located(case.source) from None
-    dirichlet = [name for name in case.boundary["dirichlet"] if name in mesh.edges]
+    check_dimension(case, mesh.dim)
+    dirichlet = [name for name in case.boundary["dirichlet"] if name in mesh.facets]
     if dirichlet:  # unknown names are reported by contact_layout
-        check_held(mesh, mesh.edge_nodes(dirichlet), source=case.source)
-    contact = [name for name in case.boundary["contact"] if name in mesh.edges]
-    check_dofs(2.0 * mesh.n_nodes, element=mesh.element, what="the mesh made", source=case.source,
-               max_dofs=max_dofs, n_contact=len(mesh.edge_nodes(contact)))  # what is real
+        check_held(mesh, _facet_nodes(mesh, dirichlet), source=case.source)
+    contact = [name for name in case.boundary["contact"] if name in mesh.facets]
+    check_dofs(mesh.dim * mesh.n_nodes, element=mesh.element, what="the mesh made",
+               source=case.source, max_dofs=max_dofs,
+               n_contact=len(_facet_nodes(mesh, contact)))  # what is real
     t1 = time.perf_counter()
-    layout = contact_layout(mesh, contact=case.boundary["contact"],
-                            dirichlet=case.boundary["dirichlet"], source=case.source)
+    layout = _layout(case, mesh)
     t2 = time.perf_counter()
     plan = []
 
@@ -246,17 +273,66 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
         ptr, col, _ = upper_pattern(pattern.indptr, pattern.indices, layout.position)
         s = case.solve
         plan.append(eigen.plan_dense(ptr, col, layout.contact_dofs, method=s["method"],
-                                     shift=s["shift"], backend=s["backend"]))
+                                     shift=s["shift"], backend=s["backend"], dim=mesh.dim))
 
     K_lam, K_G = assemble_elasticity(mesh, on_pattern=start if _plan else None)
     t3 = time.perf_counter()
-    system = contact_system(mesh, K_lam, K_G, contact=case.boundary["contact"],
-                            dirichlet=case.boundary["dirichlet"], source=case.source,
-                            layout=layout)
+    make = contact_system3d if mesh.dim == 3 else contact_system
+    system = make(mesh, K_lam, K_G, contact=case.boundary["contact"],
+                  dirichlet=case.boundary["dirichlet"], source=case.source, layout=layout)
     t4 = time.perf_counter()
     return Prepared(mesh, system, {"mesh": t1 - t0, "assembly": t3 - t2,
                                    "contact": t4 - t3 + t2 - t1},
-                    made_from=_mesh_inputs(case), plan=plan[0] if plan else None)
+                    made_from=_mesh_inputs(case), plan=plan[0] if plan else None,
+                    parts=(K_lam, K_G) if mesh.dim == 3 else None,
+                    slip=_slip_inputs(case) if mesh.dim == 3 else None)
+
+
+def _slip_inputs(case: Case):
+    """What a 3D contact system's slip directions are made from."""
+    rules = case.contact["rules"] or []
+    return (case.solve["slip_angle"], tuple((str(r["from"]), str(r["to"]), r["slip_angle"])
+                                            for r in rules if r["slip_angle"] is not None))
+
+
+def turned(prep: Prepared, case: Case) -> Prepared:
+    """``prep`` for the slip directions of ``case`` (3D; the same Prepared if they are those
+    it was made with): the contact basis turned, from the kept stiffness parts."""
+    if prep.mesh.dim == 2 or prep.slip == _slip_inputs(case):
+        return prep
+    if prep.parts is None:
+        raise CaseError("the prepared mesh kept no stiffness to turn the slip directions; "
+                        "allowed: the slip_angle it was prepared with (or prepare() the case "
+                        "again)", file=case.source, key="solve.slip_angle")
+    t0 = time.perf_counter()
+    layout = _layout(case, prep.mesh)
+    system = contact_system3d(prep.mesh, *prep.parts, contact=case.boundary["contact"],
+                              dirichlet=case.boundary["dirichlet"], source=case.source,
+                              layout=layout)
+    seconds = dict(prep.seconds, contact=time.perf_counter() - t0)
+    return dataclasses.replace(prep, system=system, seconds=seconds, plan=None,
+                               slip=_slip_inputs(case))
+
+
+def _facet_nodes(mesh: Mesh, names: list[str]) -> np.ndarray:
+    """Sorted unique nodes of the boundary groups ``names`` (edges in 2D, faces in 3D)."""
+    parts = [np.asarray(mesh.facets[name]).ravel() for name in names]
+    return np.unique(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.int64)
+
+
+def _layout(case: Case, mesh: Mesh):
+    """The contact layout of a case's mesh; in 3D with the slip direction of each contact
+    node ([solve] slip_angle, the slip_angle of [contact] rules)."""
+    b = case.boundary
+    if mesh.dim == 2:
+        return contact_layout(mesh, contact=b["contact"], dirichlet=b["dirichlet"],
+                              source=case.source)
+    layout = contact_layout3d(mesh, contact=b["contact"], dirichlet=b["dirichlet"],
+                              source=case.source)
+    angle = slip_angles(case, layout.nodes, plane_positions(mesh.points, layout.nodes,
+                                                             layout.normal, layout.tangent))
+    return dataclasses.replace(layout, slip=slip_directions(
+        layout.normal, layout.tangent, len(layout.nodes), angle=angle, source=case.source))
 
 
 def _mesh_inputs(case: Case) -> dict:
@@ -269,6 +345,9 @@ def solve_prepared(prep: Prepared, case: Case, *, _release: bool = False) -> Res
     """Solve the eigenproblem of a prepared case at the case's Poisson ratio (and [solve],
     [contact]); its geometry, mesh and boundary must be those ``prep`` was made from."""
     prep.check_case(case)
+    check_dimension(case, prep.mesh.dim)
+    if prep.mesh.dim == 3 and prep.slip != _slip_inputs(case):
+        prep = turned(prep, case)
     t0 = time.perf_counter()
     E, nu = case.material["E"], case.material["nu"]
     lam, G = lame(E, nu)
@@ -281,11 +360,12 @@ def solve_prepared(prep: Prepared, case: Case, *, _release: bool = False) -> Res
         # at 1 M DOFs they are 0.4 GB beside the factorization (the peak)
         system = prep.system = dataclasses.replace(system, K_lam=None, K_G=None,
                                                    D_lam=None, D_G=None)
+        prep.parts = None
     spec = eigen.solve(K, system, state, method=s["method"],
                        count=s["count"],
                        shift=s["shift"], tol=s["tol"], maxiter=s["maxiter"],
                        real_tol=s["real_tol"], gamma=s["gamma"], backend=s["backend"],
-                       plan=plan)
+                       plan=plan, law=s["direction_law"])
     modes = [
         {
             "alpha": m.alpha,
@@ -293,6 +373,7 @@ def solve_prepared(prep: Prepared, case: Case, *, _release: bool = False) -> Res
             "theta_n": m.X,
             "theta_t": m.Y,
             "residual": m.residual,
+            "r": m.r,
         }
         for m in spec.modes
     ]
@@ -306,6 +387,8 @@ def solve_prepared(prep: Prepared, case: Case, *, _release: bool = False) -> Res
         applications=spec.applications, n_infinite=spec.n_infinite,
         seconds=sum(timings.values()), timings=timings, warnings=spec.warnings,
         notes=spec.notes, backend=spec.backend, complete=spec.complete,
+        r=spec.r if system.dim == 3 else None, law=s["direction_law"],
+        slip_angle=s["slip_angle"],
     )
 
 

@@ -8,6 +8,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class Key:
@@ -110,6 +112,30 @@ def points(value):
     return [[float(c) for c in p] for p in value]
 
 
+def nodes(value):
+    """Mesh nodes: at least 3 points [x, y] (2D) or 4 points [x, y, z] (3D)."""
+    dim = len(value[0]) if isinstance(value, list) and value and isinstance(value[0], list) \
+        else 0
+    ok = dim in (2, 3) and len(value) >= dim + 1 and all(
+        isinstance(p, list) and len(p) == dim and all(finite(c) for c in p) for p in value)
+    if not ok:
+        raise Bad("a list of at least 3 points [x, y] (2D) or at least 4 points [x, y, z] "
+                  "(3D), all of one kind, with finite numbers")
+    return [[float(c) for c in p] for p in value]
+
+
+def triple(lo=None):
+    """Three finite numbers [x, y, z], each above ``lo`` if given."""
+    def check(value):
+        if not (isinstance(value, list) and len(value) == 3 and all(finite(v) for v in value)
+                and (lo is None or all(v > lo for v in value))):
+            raise Bad("three finite numbers [x, y, z]"
+                      + ("" if lo is None else f", each above {lo:g}"))
+        return [float(v) for v in value]
+
+    return check
+
+
 def index_rows(width):
     def check(value):
         ok = isinstance(value, list) and len(value) >= 1 and all(
@@ -134,6 +160,19 @@ def edge_table(value):
             out[name] = index_rows((2,))(rows)
         except Bad as bad:
             raise Bad(f"for edge {name!r}: {bad}") from None
+    return out
+
+
+def face_table(value):
+    if not isinstance(value, dict) or not value:
+        raise Bad("a table: face name = [[node, node, node], ...] (triangles) or "
+                  "[[node, node, node, node], ...] (quadrilaterals)")
+    out = {}
+    for name, rows in value.items():
+        try:
+            out[name] = index_rows((3, 4))(rows)
+        except Bad as bad:
+            raise Bad(f"for face {name!r}: {bad}") from None
     return out
 
 
@@ -238,26 +277,41 @@ STATUSES = ("free", "stuck", "slip")
 
 
 def contact_rules(value):
-    what = "a list of tables {from = s0, to = s1, status = 'free'|'stuck'|'slip'[, gamma = 1|-1]}"
+    what = ("a list of tables {from = s0, to = s1, status = 'free'|'stuck'|'slip'[, gamma = 1|-1]"
+            "[, slip_angle = degrees]}, s0 and s1 numbers (2D) or pairs [s1, s2] (3D)")
     if not isinstance(value, list):
         raise Bad(what)
     out = []
     for i, rule in enumerate(value):
         try:
             if not isinstance(rule, dict) or not {"from", "to", "status"} <= set(rule) or not \
-                    set(rule) <= {"from", "to", "status", "gamma"}:
+                    set(rule) <= {"from", "to", "status", "gamma", "slip_angle"}:
                 raise Bad(what)
-            lo, hi = number()(rule["from"]), number()(rule["to"])
-            if lo > hi:
-                raise Bad(f"from <= to (got from = {lo:g}, to = {hi:g})")
+            lo, hi = _rule_end(rule["from"]), _rule_end(rule["to"])
+            if np.shape(lo) != np.shape(hi):
+                raise Bad("from and to both numbers (2D) or both pairs (3D)")
+            if np.any(np.asarray(lo) > np.asarray(hi)):
+                raise Bad(f"from <= to (got from = {lo}, to = {hi})")
             status = choice(*STATUSES)(rule["status"])
-            if "gamma" in rule and status != "slip":
-                raise Bad("gamma only in a rule with status = 'slip'")
+            for key in ("gamma", "slip_angle"):
+                if key in rule and status != "slip":
+                    raise Bad(f"{key} only in a rule with status = 'slip'")
             out.append({"from": lo, "to": hi, "status": status,
-                        "gamma": gamma(rule.get("gamma", 1))})
+                        "gamma": gamma(rule.get("gamma", 1)),
+                        "slip_angle": (number(-720.0, 720.0)(rule["slip_angle"])
+                                       if "slip_angle" in rule else None)})
         except Bad as bad:
             raise Bad(f"rule {i}: {bad}") from None
     return out
+
+
+def _rule_end(value):
+    """An end of a [contact] rule: a number (2D arc length) or a pair of numbers (3D)."""
+    if isinstance(value, list):
+        if len(value) != 2:
+            raise Bad(f"a pair [s1, s2] (got {len(value)} numbers)")
+        return [number()(v) for v in value]
+    return number()(value)
 
 
 def subtable(checks: dict, what: str):

@@ -17,14 +17,16 @@ from typing import Any
 import tomli_w
 
 from ..case import checks as c
+from ..case import geometry3d as g3
 from ..case.pathkeys import LOAD_KEYS, PARAMETERS, STARTS, check_loads
 from ..errors import CaseError
-from ..fem.elements import ELEMENTS, NAMES
+from ..fem.contact3d import LAWS
+from ..fem.elements import NAMES
 
 MAX_CASE_BYTES = 16 << 20  # a case file (inline meshes included) up to this size
 MAX_DEPTH = 8  # tables and arrays nested at most this deep (the schema needs 4)
 NUMBER_RANGE = (1e-100, 1e100)  # magnitudes of nonzero numbers: squares stay finite
-SHAPES = ("square", "rectangle", "parallelogram", "polygon", "mesh", "file")
+SHAPES = ("square", "rectangle", "parallelogram", "polygon", "mesh", "file") + g3.SHAPES_3D
 METHODS = ("auto", "arpack", "dense")
 BACKENDS = ("auto", "scipy", "pardiso")  # linear solvers: critfric.linsolve.BACKENDS
 
@@ -57,15 +59,20 @@ SCHEMA: dict[str, dict[str, c.Key]] = {
         "height": c.Key(POSITIVE, c.REQUIRED, "rectangle, parallelogram: height H"),
         "base": c.Key(POSITIVE, c.REQUIRED, "parallelogram: base length L (the bottom edge)"),
         "offset": c.Key(c.number(), c.REQUIRED, "parallelogram: signed shift L' of the top edge"),
-        "vertices": c.Key(c.points, c.REQUIRED, "polygon: [[x, y], ...]"),
-        "edge_names": c.Key(c.string_list, None, "polygon: name of edge i (vertex i -> i+1)"),
-        "nodes": c.Key(c.points, c.REQUIRED, "mesh: node coordinates [[x, y], ...]"),
+        "vertices": c.Key(c.points, c.REQUIRED, "polygon, prism: [[x, y], ...]"),
+        "edge_names": c.Key(c.string_list, None, "polygon, prism: name of edge i (vertex i -> "
+                            "i+1; of a prism: of the side face over it)"),
+        "nodes": c.Key(c.nodes, c.REQUIRED, "mesh: node coordinates [[x, y], ...] or [[x, y, "
+                       "z], ...]"),
         "triangles": c.Key(c.index_rows((3,)), None, "mesh: triangles [[a, b, c], ...]"),
         "quads": c.Key(c.index_rows((4,)), None, "mesh: quadrilaterals [[a, b, c, d], ...]"),
-        "edges": c.Key(c.edge_table, c.REQUIRED, "mesh: named boundary edges {name = [[a, b], ...]}"),
+        "edges": c.Key(c.edge_table, None, "mesh (2D): named boundary edges {name = [[a, b], "
+                       "...]}"),
         "file": c.Key(c.path, c.REQUIRED, "file: a gmsh .msh mesh or .geo script, relative to the "
                     "case file; boundary edges are its named physical curves"),
-        "domain": c.Key(c.names, None, "file: physical surface(s) of the body [every surface]"),
+        "domain": c.Key(c.names, None, "file: physical surfaces (2D) or volumes (3D) of the body "
+                        "[all of them]"),
+        **g3.KEYS,
     },
     "boundary": {
         "contact": c.Key(c.names, ["bottom"], "edges of Gamma_C (one straight segment)"),
@@ -97,14 +104,19 @@ SCHEMA: dict[str, dict[str, c.Key]] = {
         "tol": c.Key(c.number(0.0, 1e-2), 0.0, "ARPACK relative tolerance (0: machine precision)"),
         "maxiter": c.Key(c.integer(1, 10**7), None, "ARPACK iteration cap (default: ARPACK's)"),
         "real_tol": c.Key(c.number(0.0, 1e-2), 1e-8, "|Im a| <= real_tol |a| counts as real"),
+        "slip_angle": c.Key(c.number(-720.0, 720.0), 0.0, "3D: slip direction, degrees from t1 "
+                            "towards t2 in the contact plane"),
+        "direction_law": c.Key(c.choice(*LAWS), "rate", "3D: the slip direction follows the "
+                               "slip rate (rate) or is prescribed (frozen)"),
     },
     "load": LOAD,
     "contact": {
         "source": c.Key(c.choice("rules", "coulomb"), "rules", "contact state of the eigenproblem: "
                       "'rules' below, or 'coulomb': the state of the static solution of [load]"),
         "default": c.Key(c.choice(*c.STATUSES), "slip", "status of contact nodes no rule covers"),
-        "rules": c.Key(c.contact_rules, None, "[{from = s0, to = s1, status, gamma}]: status of the "
-                     "contact nodes at arc length s in [s0, s1] along t (later rules win)"),
+        "rules": c.Key(c.contact_rules, None, "[{from = s0, to = s1, status, gamma, slip_angle}]: "
+                     "status of the contact nodes at s in [s0, s1] (2D: arc length along t; "
+                     "3D: [s1, s2] along t1, t2) (later rules win)"),
     },
     "stability": {
         "modes": c.Key(c.integer(1, 200), 10, "lowest-frequency mode pairs followed along friction"),
@@ -145,8 +157,9 @@ SHAPE_KEYS = {
     "rectangle": {"width", "height"},
     "parallelogram": {"base", "height", "offset"},
     "polygon": {"vertices", "edge_names"},
-    "mesh": {"nodes", "triangles", "quads", "edges"},
+    "mesh": {"nodes", "triangles", "quads", "edges"} | g3.MESH_KEYS,
     "file": {"file", "domain"},
+    **g3.SHAPE_KEYS,
 }
 
 # CLI override name -> dotted key
@@ -378,19 +391,9 @@ def _check_consistency(s: dict, source: str) -> None:
     geo, mesh, bnd = s["geometry"], s["mesh"], s["boundary"]
     shape = geo["shape"]
     if shape == "mesh":
-        if (geo["triangles"] is None) == (geo["quads"] is None):
-            raise CaseError("give exactly one of 'triangles' or 'quads'", file=source,
-                            key="geometry.triangles")
-        cell = "triangle" if geo["triangles"] is not None else "quad"
-        family = [e.name for e in ELEMENTS.values() if e.reference == cell]
-        if mesh["element"] not in family:
-            raise CaseError(f"got {mesh['element']!r} for this inline mesh; allowed: "
-                            + " or ".join(family), file=source, key="mesh.element")
-        for key in ("size", "structured", "grading"):
-            if mesh.get(key) not in (None, False):
-                raise CaseError("does not apply to an inline mesh (shape = 'mesh')",
-                                file=source, key=f"mesh.{key}")
-        names = set(geo["edges"])
+        names = g3.inline_names(geo, mesh, source)
+    elif shape in g3.SHAPES_3D:
+        names = g3.solid_names(geo, mesh, source)
     elif shape == "file":
         _check_file_shape(geo, mesh, source)
         names = None  # the file's physical groups: checked when it is read
@@ -409,7 +412,8 @@ def _check_consistency(s: dict, source: str) -> None:
     for key in ("contact", "dirichlet"):
         unknown = [e for e in bnd[key] if names is not None and e not in names]
         if unknown:
-            raise CaseError(f"unknown edge {unknown[0]!r}; allowed: "
+            what = "face" if g3.is_solid(geo) else "edge"
+            raise CaseError(f"unknown {what} {unknown[0]!r}; allowed: "
                             + ", ".join(sorted(names)), file=source, key=f"boundary.{key}")
     both = set(bnd["contact"]) & set(bnd["dirichlet"])
     if both:

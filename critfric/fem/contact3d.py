@@ -34,6 +34,7 @@ from .contact import (
 )
 from .mesh import Mesh
 
+LAWS = ("rate", "frozen")  # 3D slip laws of the e DOF at slipping nodes (the first: default)
 AXIS_TOL = 1e-6  # e_x counts as normal to Gamma_C when |n x e_x| < AXIS_TOL (t1 from e_y)
 SORT_DIGITS = 9  # contact nodes are sorted along t1, then t2, rounded to this relative digit
 

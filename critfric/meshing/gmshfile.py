@@ -8,8 +8,10 @@
   write files: a script is refused unless every statement is on the allow-list of geometry
   and meshing statements (:mod:`.geoscript`), or it is trusted (``--trust-geo``).
 
-Both are read in a limited child process (:mod:`.sandbox`), from a private copy of the file's
-bytes: the same bytes that were checked.
+A mesh with volume cells or a script that defines volumes is a 3D body (:mod:`.gmshfile3d`:
+tetrahedra or hexahedra, physical volumes and surfaces). Both are read in a limited child
+process (:mod:`.sandbox`), from a private copy of the file's bytes: the same bytes that were
+checked.
 
 Both give first-order cells; P2/Q2 midpoints are then added on straight edges
 (:func:`critfric.meshing.mesh.inline_mesh`, which also checks the cells and the boundary edges).
@@ -30,6 +32,8 @@ from ..errors import CaseError, SolverError
 from ..fem.mesh import Mesh
 from ..guards import Footprint
 from .geoscript import refusals
+from .gmshfile3d import build as build_solid
+from .gmshfile3d import domain_entities, has_solid_cells, mesh_solid_geo, read_solid_msh
 from .mesh import _gmsh_session, inline_mesh
 from .sandbox import read_input, run_in_child
 
@@ -74,7 +78,8 @@ def _build(points, cells, edges: dict, element: str, path: Path, name: str) -> M
     points = np.asarray(points, dtype=np.float64)
     scale = float(np.ptp(points[:, :2], axis=0).max()) if len(points) else 0.0
     if points.shape[1] > 2 and np.abs(points[:, 2]).max(initial=0.0) > 1e-12 * max(scale, 1e-300):
-        raise CaseError("the mesh is not in the plane z = 0; allowed: a 2D mesh",
+        raise CaseError("the mesh is not in the plane z = 0; allowed: a 2D mesh in that plane, "
+                        "or a 3D mesh with its cells (tetrahedra or hexahedra) in the file",
                         file=str(path), key="geometry.file")
     used = np.unique(cells)
     lookup = np.full(len(points), -1, dtype=np.int64)
@@ -132,9 +137,12 @@ def read_msh(path: Path, *, element: str, domain: list[str] | None = None,
             hit[np.asarray(chosen[i], dtype=np.int64)] = True
         return hit
 
+    if has_solid_cells(m):
+        return read_solid_msh(m, rows, names, path, element=element, domain=domain, name=name)
     blocks2 = [i for i, c in enumerate(m.cells) if c.type in _TRI | _QUAD]
     if not blocks2:
-        raise CaseError("the mesh has no triangles or quadrangles; allowed: a 2D gmsh mesh",
+        raise CaseError("the mesh has no cells; allowed: a gmsh mesh of triangles or "
+                        "quadrangles (2D), or of tetrahedra or hexahedra (3D)",
                         file=str(path), key="geometry.file")
     if domain:
         surfaces = {n: t for n, (t, d) in names.items() if d == 2}
@@ -174,22 +182,6 @@ def read_msh(path: Path, *, element: str, domain: list[str] | None = None,
 
 
 # ------------------------------------------------------------------------------ .geo scripts
-def _surfaces(domain: list[str] | None, path: Path, name: str) -> list[int]:
-    import gmsh
-
-    if not domain:
-        return [tag for _, tag in gmsh.model.getEntities(2)]
-    groups = {gmsh.model.getPhysicalName(2, t) or str(t): t
-              for _, t in gmsh.model.getPhysicalGroups(2)}
-    missing = [n for n in domain if n not in groups]
-    if missing:
-        raise CaseError(f"no physical surface {missing[0]!r} in {name}; allowed: "
-                        + (", ".join(sorted(groups)) or "none defined"), file=str(path),
-                        key="geometry.domain")
-    return sorted({int(e) for n in domain
-                   for e in gmsh.model.getEntitiesForPhysicalGroup(2, groups[n])})
-
-
 def _footprint(surfaces: list[int], size: float | None) -> tuple[Footprint, float]:
     """Area, perimeter and corner count of the surfaces, and the expected mesh size."""
     import gmsh
@@ -203,16 +195,24 @@ def _footprint(surfaces: list[int], size: float | None) -> tuple[Footprint, floa
             xyz = xyz[::-1] if c < 0 else xyz
             area += 0.5 * float(np.sum(xyz[:-1, 0] * xyz[1:, 1] - xyz[1:, 0] * xyz[:-1, 1]))
             perimeter += float(np.linalg.norm(np.diff(xyz, axis=0), axis=1).sum())
+    return Footprint(abs(area), perimeter, len(gmsh.model.getEntities(0))), _expected_size(size)
+
+
+def _expected_size(size: float | None) -> float:
+    """The mesh size gmsh will use: the smallest of the points' sizes, ``size`` and the
+    script's ``Mesh.MeshSizeMax`` (else a tenth of the bounding box diagonal), times
+    ``Mesh.MeshSizeFactor``, at least ``Mesh.MeshSizeMin``."""
+    import gmsh
+
     points = gmsh.model.getEntities(0)
     sizes = [float(s) for s in gmsh.model.mesh.getSizes(points) if s > 0] if points else []
     cap = gmsh.option.getNumber("Mesh.MeshSizeMax")
     sizes += [x for x in (size, cap if cap < 1e22 else None) if x]
     if not sizes:  # gmsh's default: about a tenth of the bounding box diagonal
-        x0, y0, _, x1, y1, _ = gmsh.model.getBoundingBox(-1, -1)
-        sizes = [0.1 * math.hypot(x1 - x0, y1 - y0)]
-    h = max(min(sizes) * gmsh.option.getNumber("Mesh.MeshSizeFactor"),
-            gmsh.option.getNumber("Mesh.MeshSizeMin"))
-    return Footprint(abs(area), perimeter, len(points)), h
+        x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(-1, -1)
+        sizes = [0.1 * math.hypot(x1 - x0, y1 - y0, z1 - z0)]
+    return max(min(sizes) * gmsh.option.getNumber("Mesh.MeshSizeFactor"),
+               gmsh.option.getNumber("Mesh.MeshSizeMin"))
 
 
 def _extract(surfaces: list[int]):
@@ -271,7 +271,14 @@ def mesh_geo(path: Path, *, element: str, size: float | None = None,
         except Exception as exc:  # gmsh reports script errors as bare Exceptions
             raise CaseError(f"gmsh cannot read this script: {exc}", file=str(path),
                             key="geometry.file") from None
-        surfaces = _surfaces(domain, path, name)
+        if gmsh.model.getEntities(3):  # a 3D body: its volumes are meshed
+            gmsh.option.setNumber("Mesh.ElementOrder", 1)
+            h = _expected_size(size)
+            if size:
+                gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+            solid = mesh_solid_geo(path, h=h, domain=domain, check=check, name=name)
+            return build_solid(*solid, element, path, name)
+        surfaces = domain_entities(2, domain, path, name)
         if not surfaces:
             raise CaseError("the script defines no surface; allowed: a 2D geometry with a "
                             "plane surface", file=str(path), key="geometry.file")
@@ -334,7 +341,7 @@ def file_mesh(case, *, max_dofs: int | None = None, trust_geo: bool = False) -> 
            "domain": case.geometry["domain"], "max_dofs": max_dofs, "trust": trust_geo}
     mesh = run_in_child(path, data, job, entry=ENTRY, source=case.source)
     # the estimate misses size fields and transfinite counts: check the real mesh too
-    check_dofs(2.0 * mesh.n_nodes, element=element, what=f"the mesh of {path.name}",
+    check_dofs(mesh.dim * mesh.n_nodes, element=element, what=f"the mesh of {path.name}",
                source=case.source, key="geometry.file", max_dofs=max_dofs)
     return mesh
 

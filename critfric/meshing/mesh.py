@@ -11,6 +11,7 @@ import numpy as np
 from ..errors import CaseError, CritfricError, SolverError
 from ..fem.elements import get_element
 from ..fem.mesh import Mesh, orient
+from .cells3d import index_array as _index_array
 from .geometry import Polygon, positive_number, validate
 from .refine import renumber, second_order, split
 from .singular import singular_points, split_at_junctions
@@ -324,21 +325,3 @@ def inline_mesh(nodes, cells, edges: dict, element: str) -> Mesh:
         facets = directed[first[at]]
         groups[str(name)] = np.column_stack([facets, mid[at]]) if order2 else facets
     return Mesh(points, cells, element, groups)
-
-
-def _index_array(value, width: int, n: int, key: str) -> np.ndarray:
-    """(k, width) int64 node indices in [0, n), else CaseError naming ``key``."""
-    try:
-        raw = np.asarray(value)
-        arr = raw.astype(np.int64)
-    except (TypeError, ValueError):
-        raise CaseError(f"must be rows of {width} node indices", key=key) from None
-    if raw.size == 0:
-        return np.zeros((0, width), dtype=np.int64)
-    if arr.ndim != 2 or arr.shape[1] != width or np.any(arr != raw):
-        raise CaseError(f"must be rows of {width} integer node indices, got shape {raw.shape}",
-                        key=key)
-    if arr.min() < 0 or arr.max() >= n:
-        raise CaseError(f"node indices must be in 0..{n - 1}, got {int(arr.min())}.."
-                        f"{int(arr.max())}", key=key)
-    return arr

@@ -10,9 +10,10 @@ no other file by a relative name), and runs this module there in a new Python pr
   reach critfric's ``--json``), an environment reduced to PATH and the private directory;
 * gmsh started without its option files, terminal output off.
 
-The child answers with ``mesh.npz`` (the Mesh arrays) or ``error.json`` (a CaseError or
-SolverError to raise again); anything else (a crash, ``sys.exit`` or ``abort`` in a library,
-a limit hit) becomes a clear error in the parent. The directory is removed afterwards.
+The child answers with ``mesh.npz`` (the Mesh arrays; the named boundary facets are edges in
+2D, faces in 3D) or ``error.json`` (a CaseError or SolverError to raise again); anything else
+(a crash, ``sys.exit`` or ``abort`` in a library, a limit hit) becomes a clear error in the
+parent. The directory is removed afterwards.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import numpy as np
 from ..errors import CaseError, CritfricError, SolverError
 from ..fem.elements import get_element
 from ..fem.mesh import Mesh
+from .cells3d import solid
 
 CPU_SECONDS = 60  # CPU time a child may use to read or mesh one file
 WALL_SECONDS = 120  # and wall-clock time, start-up included
@@ -144,23 +146,26 @@ def _error_from(info: dict, path: Path, source: str | None) -> CritfricError:
 
 
 def _mesh_from(result: Path, path: Path) -> Mesh:
-    """The child's Mesh arrays, checked before use."""
+    """The child's Mesh arrays (2D: edges, 3D: faces), checked before use."""
     with np.load(result, allow_pickle=False) as z:
         points, cells = z["points"], z["cells"]
         element = str(z["element"])
         names = [str(n) for n in z["edge_names"]]
-        edges = {n: z[f"edge_{i}"] for i, n in enumerate(names)}
-    spec = get_element(element)
-    ok = (points.ndim == 2 and points.shape[1] == 2 and points.dtype == np.float64
+        groups = {n: z[f"edge_{i}"] for i, n in enumerate(names)}
+    dim = points.shape[1] if points.ndim == 2 else 0
+    spec = solid(element) if dim == 3 else get_element(element)
+    ok = (dim in (2, 3) and points.dtype == np.float64
           and np.all(np.isfinite(points)) and cells.ndim == 2 and cells.shape[1] == spec.n_local
           and cells.dtype.kind == "i" and cells.size and cells.min() >= 0
           and cells.max() < len(points)
           and all(e.ndim == 2 and e.shape[1] == spec.facet_nodes and e.dtype.kind == "i"
                   and (e.size == 0 or (e.min() >= 0 and e.max() < len(points)))
-                  for e in edges.values()))
+                  for e in groups.values()))
     if not ok:
         raise SolverError(f"the mesh read from {path.name} came back malformed")
-    return Mesh(points, cells, element, edges)
+    if dim == 3:
+        return Mesh(points, cells, element, faces=groups)
+    return Mesh(points, cells, element, groups)
 
 
 # ------------------------------------------------------------------------------- the child
@@ -173,11 +178,12 @@ def child_main(entry: str) -> None:
         job = json.loads((work / "job.json").read_text())
         module, _, function = entry.partition(":")
         mesh = getattr(importlib.import_module(module), function)(work, job)
-        names = sorted(mesh.edges)
+        groups = mesh.faces if mesh.points.shape[1] == 3 else mesh.edges  # facets of the body
+        names = sorted(groups)
         np.savez(work / "mesh.npz", points=np.ascontiguousarray(mesh.points, dtype=np.float64),
                  cells=mesh.cells.astype(np.int64), element=np.str_(mesh.element),
                  edge_names=np.array(names, dtype=str),
-                 **{f"edge_{i}": mesh.edges[n].astype(np.int64) for i, n in enumerate(names)})
+                 **{f"edge_{i}": groups[n].astype(np.int64) for i, n in enumerate(names)})
     except CritfricError as exc:
         _answer(work, {"kind": "case" if isinstance(exc, CaseError) else "solver",
                        "message": getattr(exc, "detail", str(exc)),

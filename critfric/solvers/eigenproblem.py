@@ -41,12 +41,12 @@ import scipy.sparse as sp
 
 from ..errors import CaseError, SolverError
 from ..fem.contact import SLIP, STUCK, ContactSystem
+from ..fem.contact3d import LAWS
 from .backends import factorize
 from .ordering import fill_order
 
 INFINITE_TOL = 1e-6
 RESIDUAL_TOL = 1e-6
-LAWS = ("rate", "frozen")  # 3D slip laws of the e DOF at slipping nodes (the first: default)
 
 
 @dataclass(frozen=True)

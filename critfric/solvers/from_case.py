@@ -29,9 +29,65 @@ def arc_length(system: ContactSystem, contact: list[str]) -> np.ndarray:
     return along[system.nodes] - along[ends].min()
 
 
+def _inside(case: Case, s: np.ndarray, rule: dict, dim: int) -> np.ndarray:
+    """The contact nodes at positions s ((p,) 2D, (p, 2) 3D) that a [contact] rule covers."""
+    lo, hi = np.asarray(rule["from"], dtype=float), np.asarray(rule["to"], dtype=float)
+    if lo.ndim != dim - 2:
+        raise CaseError(f"got from = {rule['from']}; allowed: "
+                        + ("numbers (arc length along t)" if dim == 2 else
+                           "pairs [s1, s2] (positions along t1, t2 in the contact plane)"),
+                        file=case.source, key="contact.rules")
+    tol = RULE_TOL * max(float(np.ptp(s)), 1.0)
+    inside = (s >= lo - tol) & (s <= hi + tol)
+    return inside if dim == 2 else inside.all(axis=1)
+
+
+def plane_positions(points: np.ndarray, nodes: np.ndarray, normal: np.ndarray,
+                    t1: np.ndarray) -> np.ndarray:
+    """(p, 2) positions (s1, s2) of 3D contact nodes along t1 and t2 = n x t1, from the
+    smallest of each over Gamma_C (the 3D counterpart of :func:`arc_length`)."""
+    s = np.asarray(points, dtype=float)[nodes] @ np.column_stack([t1, np.cross(normal, t1)])
+    return s - s.min(axis=0)
+
+
+def contact_positions(case: Case, system: ContactSystem) -> np.ndarray:
+    """The positions the rules of [contact] refer to: arc length (2D), (s1, s2) (3D)."""
+    if system.dim == 2:
+        return arc_length(system, case.boundary["contact"])
+    return plane_positions(system.mesh.points, system.nodes, system.normal, system.tangent)
+
+
+def slip_angles(case: Case, nodes: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """(p,) slip angle of each 3D contact node: [solve] slip_angle, or that of the last rule
+    of [contact] with a slip_angle that covers the node."""
+    angle = np.full(len(nodes), float(case.solve["slip_angle"]))
+    for rule in case.contact["rules"] or []:  # a handful of rules, vectorized over nodes
+        if rule["slip_angle"] is not None:
+            angle[_inside(case, positions, rule, 3)] = rule["slip_angle"]
+    return angle
+
+
+def check_dimension(case: Case, dim: int, what: str = "") -> None:
+    """Refuse the 3D-only keys on a 2D body and, with ``what``, a 2D-only command on a 3D one."""
+    if dim == 3 and what:
+        raise CaseError(f"{what} is for 2D bodies; allowed here: critfric solve and sweep on "
+                        "3D bodies", file=case.source, key="geometry.shape")
+    if dim == 2:
+        rules = case.contact["rules"] or []
+        if case.solve["slip_angle"] != 0 or any(r["slip_angle"] is not None for r in rules):
+            raise CaseError("applies to 3D bodies; allowed in 2D: [solve] gamma (+1 or -1) "
+                            "for the slip sign", file=case.source, key="solve.slip_angle")
+        if case.solve["direction_law"] != "rate":
+            raise CaseError("applies to 3D bodies (the law of the slip direction)",
+                            file=case.source, key="solve.direction_law")
+
+
 def contact_state(case: Case, system: ContactSystem) -> ContactState | None:
     """The contact state of ``[contact]`` (None: every node slipping with [solve] gamma)."""
     rules, c = case.contact["rules"] or [], case.contact
+    if c["source"] == "coulomb" and system.dim == 3:
+        raise CaseError("the static problem (2.8) is solved for 2D bodies only; allowed for "
+                        "3D bodies: source = 'rules'", file=case.source, key="contact.source")
     if c["source"] == "coulomb":
         problem = case_problem(case, system)
         if problem.friction is None:
@@ -45,12 +101,11 @@ def contact_state(case: Case, system: ContactSystem) -> ContactState | None:
         return state
     if not rules and c["default"] == "slip":
         return None
-    s = arc_length(system, case.boundary["contact"])
-    tol = RULE_TOL * max(np.ptp(s), 1.0)
+    s = contact_positions(case, system)
     status = np.full(system.n_contact, CODES[c["default"]], dtype=np.int8)
     gamma = np.full(system.n_contact, float(case.solve["gamma"]))
     for rule in rules:  # loop over rules (a handful), vectorized over nodes
-        inside = (s >= rule["from"] - tol) & (s <= rule["to"] + tol)
+        inside = _inside(case, s, rule, system.dim)
         status[inside] = CODES[rule["status"]]
         gamma[inside] = rule["gamma"] if rule["status"] == "slip" else gamma[inside]
     if not np.any(status == SLIP):

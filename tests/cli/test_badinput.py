@@ -53,6 +53,54 @@ dirichlet = ["e2"]
 size = 0.25
 """
 
+BOX = """\
+[geometry]
+shape = "box"
+size = [1.0, 1.0, 1.0]
+[boundary]
+contact = ["z0"]
+dirichlet = ["z1"]
+[mesh]
+size = 0.5
+"""
+
+TETRAHEDRON = """\
+[geometry]
+shape = "mesh"
+nodes = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+tetrahedra = [[0, 1, 2, 3]]
+[geometry.faces]
+bottom = [[0, 1, 2]]
+side = [[0, 1, 3]]
+[boundary]
+contact = ["bottom"]
+dirichlet = ["side"]
+"""
+
+# one wedge (a 6-node prism) in a physical volume: a 3D cell critfric does not mesh with
+WEDGE_MSH = """\
+$MeshFormat
+2.2 0 8
+$EndMeshFormat
+$PhysicalNames
+1
+3 1 "body"
+$EndPhysicalNames
+$Nodes
+6
+1 0 0 0
+2 1 0 0
+3 0 1 0
+4 0 0 1
+5 1 0 1
+6 0 1 1
+$EndNodes
+$Elements
+1
+1 6 2 1 1 1 2 3 4 5 6
+$EndElements
+"""
+
 FILE_CASE = """\
 [geometry]
 shape = "file"
@@ -177,6 +225,39 @@ CATALOGUE = [
               edit("[3, 0, 4]]", "[3, 0, 4], [5, 6, 7]]", FOUR))
          + '[boundary]\ncontact = ["bottom"]\ndirichlet = ["top"]\n',
          "boundary.dirichlet", "float"),
+    # --- 3D bodies
+    case("box size with a zero edge", edit("[1.0, 1.0, 1.0]", "[1.0, 0.0, 1.0]", BOX),
+         "geometry.size", "each above 0"),
+    case("box size of two numbers", edit("[1.0, 1.0, 1.0]", "[1.0, 1.0]", BOX), "geometry.size",
+         "[x, y, z]"),
+    case("box origin not finite", edit("[boundary]", "origin = [0, inf, 0]\n[boundary]", BOX),
+         "geometry.origin", "finite"),
+    case("box with the 2D default boundary", edit('contact = ["z0"]\ndirichlet = ["z1"]\n', "",
+                                                   BOX), "boundary.contact",
+         "unknown face 'bottom'", "x0, x1, y0, y1, z0, z1"),
+    case("box mesh graded", edit("size = 0.5", "size = 0.5\ngrading = 0.1", BOX), "mesh.grading",
+         "3D"),
+    case("prism depth 0", POLYGON.format(vertices="[[0,0],[1,0],[0,1]]").replace(
+        "[boundary]", "depth = 0\n[boundary]").replace('"polygon"', '"prism"'), "geometry.depth",
+         "(0, inf]"),
+    case("prism edge named like an end face",
+         POLYGON.format(vertices="[[0,0],[1,0],[0,1]]").replace('"polygon"', '"prism"').replace(
+             "[boundary]", 'edge_names = ["e0", "e1", "z1"]\n[boundary]'),
+         "geometry.edge_names", "'z1'", "end face"),
+    case("inline tetrahedra without faces", TETRAHEDRON.split("[geometry.faces]")[0],
+         "geometry.faces", "missing"),
+    case("inline tetrahedra with 2D nodes",
+         edit("[0.0, 0.0, 1.0]]", "[1.0, 1.0]]", edit("[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], "
+                                                      "[0.0, 1.0, 0.0]", "[[0.0, 0.0], [1.0, "
+                                                      "0.0], [0.0, 1.0]", TETRAHEDRON)),
+         "geometry.nodes", "[x, y, z]"),
+    case("inline tetrahedra named by edges",
+         TETRAHEDRON.split("[geometry.faces]")[0] + "[geometry.edges]\nbottom = [[0, 1]]\n",
+         "geometry.edges", "mesh of tetrahedra", "[geometry.faces]"),
+    case("Q1 element on a tetrahedron mesh", TETRAHEDRON + '[mesh]\nelement = "Q1"\n',
+         "mesh.element", "P1 or P2"),
+    case("3D .msh with a wedge", FILE_CASE.format(file="body.msh", extra=""), "wedge",
+         "tetrahedra only or hexahedra only", named="body.msh", more={"body.msh": WEDGE_MSH}),
     # --- user geometry files
     case("geometry file missing", FILE_CASE.format(file="body.msh", extra=""), "body.msh",
          "no such file"),
