@@ -28,8 +28,8 @@ from .guards import check_dofs, polygon_footprint
 from .meshing.geometry import parallelogram, polygon, rectangle, validate
 from .meshing.gmshfile import check_file, file_mesh
 from .meshing.mesh import build_mesh, inline_mesh
-from .meshing.solid import check_solid, is_solid, solid_mesh
 from .meshing.singular import contact_run, singular_points, state_junctions
+from .meshing.solid import check_solid, is_solid, solid_mesh
 from .solvers import eigen
 from .solvers.from_case import check_dimension, contact_state, plane_positions, slip_angles
 

@@ -171,6 +171,8 @@ OVERRIDES = {
     "shift": "solve.shift",
     "method": "solve.method",
     "backend": "solve.backend",
+    "slip_angle": "solve.slip_angle",
+    "direction_law": "solve.direction_law",
     "output": "output.file",
     "modes": "stability.modes",
     "friction": "stability.friction",

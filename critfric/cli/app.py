@@ -85,6 +85,12 @@ def solve(
     method: str | None = typer.Option(None, help="Eigen solver: " + ", ".join(METHODS) + " [default: the case's, else auto]."),
     backend: str | None = typer.Option(None, help="Sparse linear solver: "
                                           + ", ".join(BACKENDS) + " [default: the case's, else auto]."),
+    slip_angle: float | None = typer.Option(None, help="3D: slip direction in degrees from t1 "
+                                               "towards t2 in the contact plane [default: the "
+                                               "case's, else 0]."),
+    direction_law: str | None = typer.Option(None, help="3D: rate (the slip direction follows "
+                                                "the slip rate) or frozen (prescribed) "
+                                                "[default: the case's, else rate]."),
     output: Path | None = typer.Option(None, "--output", "-o", help="HDF5 result file [default: <case name>.h5]."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing result file."),
     as_json: bool = typer.Option(False, "--json", help="Print only a JSON summary on stdout."),
@@ -94,7 +100,8 @@ def solve(
 ) -> None:
     """Compute the critical friction coefficients of a case and write an HDF5 result."""
     given = {"nu": nu, "element": element, "size": size, "count": count, "shift": shift,
-             "method": method, "backend": backend,
+             "method": method, "backend": backend, "slip_angle": slip_angle,
+             "direction_law": direction_law,
              "output": str(output) if output is not None else None}
     overrides = {OVERRIDES[k]: v for k, v in given.items() if v is not None}
     with reported("no result written (an existing file is unchanged)") as ending:
@@ -117,6 +124,11 @@ def solve(
                    f"{result.n_contact} contact nodes")
         typer.echo(f"nu        {result.nu:g}   solver {result.solver}   "
                    f"{result.seconds:.2f} s")
+        if result.dim == 3:
+            r = result.r_of(result.positive[:1])
+            typer.echo(f"slip      angle {result.slip_angle:g} deg, {result.law} law"
+                       + (f", r = {r[0]:.3g} for the lowest (0: a static branch too)"
+                          if len(r) else ""))
         typer.echo(f"positive  {fmt_values(result.positive)}")
         typer.echo(f"negative  {fmt_values(result.negative)}")
         typer.echo(f"complex   {result.complex_count}")

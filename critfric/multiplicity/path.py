@@ -26,7 +26,7 @@ from ..errors import CaseError
 from ..fem.static import StaticProblem
 from ..solve import prepare
 from ..solvers import coulomb
-from ..solvers.from_case import arc_length, case_problem
+from ..solvers.from_case import arc_length, case_problem, check_dimension
 from .arcs import Track
 from .enumeration import MAX_NODES, Enumerator
 from .explore import SAME_TOL, Explorer
@@ -77,6 +77,7 @@ def path_case(case: Case | dict | str | Path, *, overrides: dict[str, Any] | Non
                             "table with traction, body_force, points or displacement",
                             file=case.source, key="path.load")
     prepared = prepare(case, max_dofs=max_dofs, trust_geo=trust_geo)
+    check_dimension(case, prepared.mesh.dim, "critfric path")
     system = prepared.system
     _guard(case, system.n_contact, opts)
     if opts["node"] is not None and opts["node"] >= system.n_contact:

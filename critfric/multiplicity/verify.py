@@ -41,6 +41,7 @@ from ..solvers import eigen
 from ..solvers.coulomb import Complementarity, Condensed, violations
 from ..solvers.coulomb import solve as coulomb_solve
 from ..solvers.eigen import ContactState
+from ..solvers.from_case import check_dimension
 
 PASS_TOL = 1e-10
 SLIP = 1.0  # a0: the tangential displacement of Gamma_C in the construction
@@ -196,6 +197,7 @@ def branch(case: Case | str | Path, *, friction: float | None = None, mode=None,
 
     case = case if isinstance(case, Case) else load_case(case)
     prep = prepared or prepare(case)
+    check_dimension(case, prep.mesh.dim, "critfric verify")
     if mode is None:
         mode, gamma = _critical(prep, case)
     gamma = gamma or 1

@@ -24,7 +24,7 @@ from ..solve import Prepared, prepare
 from ..solvers import eigen
 from ..solvers.backends import resolve_backend
 from ..solvers.eigen import ContactState
-from ..solvers.from_case import contact_state
+from ..solvers.from_case import check_dimension, contact_state
 from ..solvers.ordering import fill_order
 from . import fold, locus
 from .pencil import sliding_pencil
@@ -125,6 +125,7 @@ class StabilityResult:
 def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
     """Thresholds of a prepared case at its Poisson ratio, density and [stability] keys."""
     prep.check_case(case)
+    check_dimension(case, prep.mesh.dim, "critfric stability")
     t0 = time.perf_counter()
     E, nu, rho = case.material["E"], case.material["nu"], case.material["density"]
     s, st = case.solve, case.stability
