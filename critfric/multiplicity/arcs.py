@@ -119,10 +119,14 @@ class State:
         p0 = len(self.slip)
         if not p0:
             return np.zeros((2 * p, 0))
-        Z = la.cho_solve(self._chol, np.eye(len(self._u), p0), check_finite=False)
+        E = np.eye(len(self._u), p0)
+        Z = la.cho_solve(self._chol, E, check_finite=False)
         self._U1 = np.zeros((2 * p, p0))  # C Z1 = the displacements themselves
         self._U1[self._u] = Z
-        return S[:, self._u] @ Z
+        Z1 = np.empty((2 * p, p0))  # S Z on the rows u is S_uu Z = E: only the others
+        known = np.setdiff1d(np.arange(2 * p), self._u)
+        Z1[self._u], Z1[known] = E, S[np.ix_(known, self._u)] @ Z
+        return Z1
 
     def _base(self, t: float) -> np.ndarray:
         """A(ref)^-1 b(t): the state's solution at the reference friction."""
@@ -223,9 +227,8 @@ class State:
         if p0:  # A(f) z' = -E F^T z, A(f)^-1 E = Z1 (I + f H)^-1
             dz = -self.Z1 @ la.solve(np.eye(p0) + t0 * self.H, self.Ft(z0), check_finite=False)
         zero = np.zeros_like(z0)
-        explicit = (cz.slack(self.code, 1.0, z0, u0=zero, Ur=np.zeros(cz.p))
-                    - cz.slack(self.code, 0.0, z0, u0=zero, Ur=np.zeros(cz.p)))
-        slope = d * (explicit + cz.slack(self.code, t0, dz, u0=zero, Ur=np.zeros(cz.p)))
+        slope = d * (cz.slack_friction(self.code, z0)
+                     + cz.slack(self.code, t0, dz, u0=zero, Ur=np.zeros(cz.p)))
         active = self.slack(t0, z0) >= -2 * NOISE
         return bool(np.any(active & (slope * self.track.length > NOISE)))
 

@@ -142,6 +142,14 @@ class Condensed:
         return np.concatenate([first, (Ys + friction * Xs) / F, (-Ys + friction * Xs) / F,
                                turn], axis=-1)
 
+    def slack_friction(self, code: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """d/d(friction) of :meth:`slack` at fixed z: X / F on both cone rows of each stuck
+        node, 0 on the other rows."""
+        stuck = np.flatnonzero(code == STUCK)
+        Xs = z[stuck] / self.F
+        n_slip = np.count_nonzero((code == SLIP_PLUS) | (code == SLIP_MINUS))
+        return np.concatenate([np.zeros(self.p), Xs, Xs, np.zeros(n_slip)])
+
     def labels(self, z: np.ndarray, friction: float, u0=None) -> list[str]:
         """Status words of a solution: free, stuck, slip+, slip- or cone (on the Coulomb cone
         without slipping)."""
