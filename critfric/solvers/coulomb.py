@@ -32,7 +32,7 @@ import scipy.sparse as sp
 from ..errors import CaseError, SolverError
 from ..fem.contact import FREE, SLIP, STUCK, ContactSystem
 from ..fem.static import StaticProblem
-from .backends import ScipySchur
+from .backends import schur
 from .eigen import ContactState
 from .ordering import fill_order
 
@@ -43,13 +43,14 @@ SETTLE = 3
 
 
 class Condensed:
-    """K factored once with the contact DOFs last (:class:`critfric.solvers.backends.ScipySchur`);
-    ``S`` (2p, 2p): the Schur complement onto (U_n, U_t); ``solve``: K^-1."""
+    """K factored once with its Schur complement onto the contact DOFs
+    (:func:`critfric.solvers.backends.schur`: PARDISO's Schur option, or SuperLU with the
+    contact DOFs last); ``S`` (2p, 2p): the Schur complement onto (U_n, U_t); ``solve``: K^-1."""
 
-    def __init__(self, K: sp.spmatrix, system: ContactSystem):
+    def __init__(self, K: sp.spmatrix, system: ContactSystem, backend: str = "auto"):
         self.cdofs = np.concatenate([system.cn, system.ct])
         self.p = system.n_contact
-        self._schur = ScipySchur(K, self.cdofs, order=fill_order(system))
+        self._schur = schur(K, self.cdofs, backend=backend, order=fill_order(system))
         self.S = self._schur.S
 
     def solve(self, b: np.ndarray) -> np.ndarray:

@@ -17,6 +17,7 @@ import weakref
 from typing import Callable, NamedTuple
 
 import numpy as np
+import scipy.linalg as la
 import scipy.sparse as sp
 
 from ..errors import SolverError
@@ -123,6 +124,7 @@ class PardisoFactor:
         self._iparm[34] = 1  # zero-based indices
         self._perm = np.zeros(n, dtype=np.int32)
         self._index = None
+        self._cho = None  # Cholesky of the Schur complement, for full solves
         weakref.finalize(self, _pardiso_release, lib, self._pt, self.mtype, n, self._threads)
 
     def _analyse(self, schur_index) -> None:
@@ -162,10 +164,22 @@ class PardisoFactor:
                               "try backend = 'scipy'")
 
     def solve(self, b: np.ndarray, *, transpose: bool = False) -> np.ndarray:
-        """A^-1 b (A^-T b with ``transpose``) for b of shape (n,) or (n, k)."""
+        """A^-1 b (A^-T b with ``transpose``) for b of shape (n,) or (n, k). With a Schur
+        complement (symmetric): the forward substitution (phase 331) leaves the reduced
+        right-hand side on the Schur rows, S solves them, the backward one (333) the rest."""
         b = np.asarray(b, dtype=np.float64)
         bt = np.ascontiguousarray(b.T)  # column-major right-hand sides
         x = np.zeros_like(bt)
+        if self._index is not None:
+            if self._cho is None:
+                self._cho = la.cho_factor(self.S, check_finite=False)
+            nrhs = 1 if b.ndim == 1 else b.shape[1]
+            self._call(331, nrhs, bt, x)
+            y = x.T.copy()
+            y[self._index] = la.cho_solve(self._cho, y[self._index], check_finite=False)
+            x = np.zeros_like(bt)
+            self._call(333, nrhs, np.ascontiguousarray(y.T), x)
+            return x.T
         self._iparm[11] = 2 if transpose and self.mtype != 2 else 0  # A^T x = b
         try:
             self._call(33, 1 if b.ndim == 1 else b.shape[1], bt, x)

@@ -486,3 +486,18 @@ def test_substructuring_stops_at_a_failed_piece(monkeypatch):
     with pytest.raises(SolverError, match="singular"):
         linsolve.SplitSchur(K.tocsr(), index, pieces, workers=2)
     assert sorted(calls)[:2] == [0, 1] and len(calls) <= 3  # at most one piece started after
+
+
+@pytest.mark.parametrize("backend", backends())
+def test_a_schur_factorization_solves_the_whole_system(backend):
+    """The factorization that gives S also solves K x = b (PARDISO: forward substitution,
+    S on the Schur rows, backward substitution), one or several right-hand sides."""
+    case = loads_case(square_case(size=0.2))
+    system = prepare(case).system
+    K = system.stiffness(*lame(1.0, 0.3))
+    index = np.concatenate([system.cn, system.ct])
+    factor = linsolve.schur(K, index, backend=backend)
+    rng = np.random.default_rng(3)
+    for b in (rng.standard_normal(K.shape[0]), rng.standard_normal((K.shape[0], 3))):
+        x = factor.solve(b)
+        assert np.abs(K @ x - b).max() <= 1e-10 * np.abs(b).max()
