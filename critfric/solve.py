@@ -90,6 +90,7 @@ class Result:
     r: np.ndarray | None = None  # 3D: r of each eigenvalue of alpha (0: an exact static branch)
     law: str = "rate"  # 3D: the law of the slip direction
     slip_angle: float = 0.0  # 3D: [solve] slip_angle
+    slip: np.ndarray | None = None  # 3D: (p, 3) slip direction s of each contact node
 
     @property
     def dim(self) -> int:
@@ -388,7 +389,7 @@ def solve_prepared(prep: Prepared, case: Case, *, _release: bool = False) -> Res
         seconds=sum(timings.values()), timings=timings, warnings=spec.warnings,
         notes=spec.notes, backend=spec.backend, complete=spec.complete,
         r=spec.r if system.dim == 3 else None, law=s["direction_law"],
-        slip_angle=s["slip_angle"],
+        slip_angle=s["slip_angle"], slip=system.slip,
     )
 
 

@@ -75,6 +75,23 @@ method = "{method}"
 """
 
 
+def box_case(*, element="P1", size=0.3, depth=1.0, extra="") -> str:
+    """A box [0, 1] x [0, 0.5] x [0, depth] resting on its face y0, clamped on y1 (3D)."""
+    return f"""
+title = "box on a plane"
+[geometry]
+shape = "box"
+size = [1.0, 0.5, {depth}]
+[boundary]
+contact = ["y0"]
+dirichlet = ["y1"]
+[mesh]
+element = "{element}"
+size = {size}
+{extra}
+"""
+
+
 def run_cli(*args):
     """``critfric ARGS`` in this process (typer's CliRunner); every argument str()-ed."""
     from typer.testing import CliRunner

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from helpers import run_cli
+from helpers import box_case, run_cli
 
 import critfric
 from critfric import CaseError, loads_case
@@ -62,25 +62,9 @@ def test_the_corner_tetrahedron_at_nu_0_3_from_the_issue():
     assert mirror.r_of(mirror.positive)[0] < 1e-12  # on the mirror plane: an exact branch
 
 
-BOX = """
-[geometry]
-shape = "box"
-size = [1.0, 0.5, 0.8]
-[boundary]
-contact = ["y0"]
-dirichlet = ["y1"]
-[mesh]
-element = "{element}"
-size = {size}
-[solve]
-count = 3
-slip_angle = {angle}
-"""
-
-
 @pytest.fixture(scope="module")
 def box():
-    return loads_case(BOX.format(element="P1", size=0.3, angle=30.0))
+    return loads_case(box_case(size=0.3, depth=0.8, extra="[solve]\ncount = 3\nslip_angle = 30.0"))
 
 
 def test_a_box_reversed_slip_direction_flips_every_coefficient(box):
@@ -125,7 +109,7 @@ def test_rules_set_status_and_slip_angle_per_region_of_the_contact_plane(box):
 
 
 def test_a_hexahedral_box_converges_towards_the_tetrahedral_one():
-    values = {e: critfric.solve_case(loads_case(BOX.format(element=e, size=0.2, angle=0.0)))
+    values = {e: critfric.solve_case(loads_case(box_case(element=e, size=0.2, depth=0.8)))
               .critical for e in ("P2", "Q2")}
     assert values["P2"] == pytest.approx(values["Q2"], rel=2e-2)
 

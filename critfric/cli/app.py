@@ -23,6 +23,7 @@ from ..case.schema import (
 )
 from ..errors import CaseError
 from ..fem.elements import NAMES
+from ..files.catalog import static_table
 from ..files.results import default_output, write_result
 from ..files.safety import interrupt_guard, output_lock
 from ..solve import solve_case
@@ -34,7 +35,7 @@ def _table(rows: list[dict]) -> str:
     static = [r for r in rows if r.get("kind") not in ("stability", "path")]
     stability = [r for r in rows if r.get("kind") == "stability"]
     paths = [r for r in rows if r.get("kind") == "path"]
-    parts = ([_static_table(static)] if static else []) + (
+    parts = ([static_table(static)] if static else []) + (
         [_stability_table(stability)] if stability else [])
     if paths:
         from ..files.pathfile import path_table
@@ -57,19 +58,6 @@ def _stability_table(rows: list[dict]) -> str:
                      f"{value(r['divergence']['positive']):>14} "
                      f"{value(r['divergence']['negative']):>14} "
                      f"{'/'.join(sorted(first)) or 'none':>9} {r['seconds']:>8.2f}")
-    return "\n".join(lines)
-
-
-def _static_table(rows: list[dict]) -> str:
-    head = f"{'case':<16} {'element':<7} {'nu':>6} {'h':>9} {'n_dofs':>8} {'p':>5} " \
-           f"{'critical (lowest > 0)':>22} {'lowest < 0':>14} {'complex':>7} {'seconds':>8}"
-    lines = [head, "-" * len(head)]
-    for r in rows:
-        pos = f"{r['positive'][0]:.10f}" if r["positive"] else "none"
-        neg = f"{r['negative'][0]:.8f}" if r["negative"] else "none"
-        lines.append(f"{r['case']:<16} {r['element']:<7} {r['nu']:>6.3f} {r['h']:>9.4g} "
-                     f"{r['n_dofs']:>8d} {r['n_contact']:>5d} {pos:>22} {neg:>14} "
-                     f"{r['complex_count']:>7d} {r['seconds']:>8.2f}")
     return "\n".join(lines)
 
 
@@ -233,7 +221,7 @@ def table(
         typer.echo(json.dumps(rows) if as_json else _table(rows))
 
 
-@app.command(epilog="\b\nExamples:\n  critfric sweep --nu 0:0.5\n  critfric sweep unit-square --nu 0.3 --size 0.1,0.05,0.025 --element P1,P2 -o fig5.h5\n  critfric sweep inclined-body --nu 0:0.5:21 --plot -j 2")
+@app.command(epilog="\b\nExamples:\n  critfric sweep --nu 0:0.5\n  critfric sweep unit-square --nu 0.3 --size 0.1,0.05,0.025 --element P1,P2 -o fig5.h5\n  critfric sweep inclined-body --nu 0:0.5:21 --plot -j 2\n  critfric sweep box.toml --slip-angle 0:180:13 --plot")
 def sweep(
     case: str | None = typer.Argument(None, help="Case file or shipped case name "
                                                     "[default: unit-square]."),
@@ -244,6 +232,13 @@ def sweep(
                                        "h -> 0 limits) [default: the case's size]."),
     element: str | None = typer.Option(None, help="Elements, e.g. P1,P2 [default: the "
                                           "case's element]."),
+    slip_angle: str | None = typer.Option(None, "--slip-angle", help="3D bodies: slip "
+                                          "angles in degrees, A:B[:N] (N points, ends "
+                                          "included, default 13) or v1,v2,...; each also "
+                                          "gives alpha at angle + 180, and two directions or "
+                                          "more locate the body's coefficient, the minimum "
+                                          "over directions [default: the case's "
+                                          "[solve] slip_angle, no minimum]."),
     grading: float | None = typer.Option(None, help="Meshes graded at every singular "
                                             "point (contact ends, state junctions, corners "
                                             "where the condition changes, re-entrant "
@@ -267,7 +262,8 @@ def sweep(
     max_dofs: MaxDofs = None,
     trust_geo: TrustGeo = False,
 ) -> None:
-    """Sweep nu, mesh size and element; resumable; h -> 0 limits with error estimates."""
+    """Sweep nu, mesh size, element and (3D) slip angle; resumable; h -> 0 limits with error
+    estimates; over slip angles, the minimum over directions."""
     with reported("every finished point is kept in the sweep file; run the same command "
                   "again to compute only the rest"):
         from ..plots.figures import plot_file
@@ -278,7 +274,7 @@ def sweep(
         loaded = load_case(case or "unit-square",
                            overrides={"mesh.grading": grading, "solve.count": count})
         grid = make_grid(loaded, nu=nu, size=size, element=element, max_dofs=max_dofs,
-                         trust_geo=trust_geo, quantity=quantity)
+                         trust_geo=trust_geo, quantity=quantity, slip_angle=slip_angle)
         for note in grid.notes:
             say(f"critfric: note: {note}")
         out = output or sweep_output(loaded, grid)

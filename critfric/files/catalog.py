@@ -1,5 +1,5 @@
 """What a set of critfric files holds, one summary row per solve, sweep point, stability
-analysis or path."""
+analysis or path, and the table of the solve and sweep rows."""
 
 from __future__ import annotations
 
@@ -51,3 +51,31 @@ def summaries(paths) -> tuple[list[dict], list[tuple[Path, str]]]:
         except CaseError as exc:
             skipped.append((path, exc.detail))
     return rows, skipped
+
+
+def static_table(rows: list[dict]) -> str:
+    """The table of solve rows and sweep points (as :func:`summaries` gives them): the lowest
+    positive and negative coefficients per row. With a 3D solve among them, the columns dim,
+    law and slip angle follow the case, and the lowest values of 3D rows show their r (0: the
+    eigenpair is an exact static branch)."""
+    solid = any(r.get("dim") == 3 for r in rows)
+    wide = 8 if solid else 0
+    head = f"{'case':<16} " + (f"{'dim':>3} {'law':<6} {'slip':>6} " if solid else "") \
+        + f"{'element':<7} {'nu':>6} {'h':>9} {'n_dofs':>8} {'p':>5} " \
+        + f"{'critical (lowest > 0)':>{22 + wide}} {'lowest < 0':>{14 + wide}} " \
+        + f"{'complex':>7} {'seconds':>8}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        pos = f"{r['positive'][0]:.10f}" if r["positive"] else "none"
+        neg = f"{r['negative'][0]:.8f}" if r["negative"] else "none"
+        three = r.get("dim") == 3
+        if solid and three:
+            pos += f" (r {r['r_positive'][0]:.3f})" if r.get("r_positive") else ""
+            neg += f" (r {r['r_negative'][0]:.3f})" if r.get("r_negative") else ""
+        angle = f"{r['slip_angle']:g}" if three and "slip_angle" in r else "-"
+        frame = f"{r.get('dim', 2):>3} {r.get('law', '-'):<6} {angle:>6} " if solid else ""
+        lines.append(f"{r['case']:<16} {frame}{r['element']:<7} {r['nu']:>6.3f} "
+                     f"{r['h']:>9.4g} {r['n_dofs']:>8d} {r['n_contact']:>5d} "
+                     f"{pos:>{22 + wide}} {neg:>{14 + wide}} {r['complex_count']:>7d} "
+                     f"{r['seconds']:>8.2f}")
+    return "\n".join(lines)

@@ -7,15 +7,20 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import h5py
 import numpy as np
 
 from ..errors import CaseError
+from ..fem.contact3d import LAWS
 from ..fem.elements import NAMES, get_element
 
-SCHEMA_VERSION = 2  # the newest file layout this version reads (and writes)
+SCHEMA_VERSION = 2  # the layout of the 2D files critfric writes (solve, sweep, stability, path)
+SOLID_VERSION = 3  # the layout of a 3D solve file: points (n, 3), faces, r, slip directions
+NEWEST_VERSION = SOLID_VERSION  # the newest layout this version reads
+UNIT_TOL = 1e-6  # a stored unit vector's length may differ from 1 by this (and a dot by this)
 SLACK_BYTES = 1 << 20  # a dataset may declare at most 4 x the file's size plus this
 
 # root attributes: name -> kind ("int", "float", "str", "json", "element")
@@ -37,6 +42,7 @@ ATTRS = {"solve": SOLVE_ATTRS, "sweep": SWEEP_ATTRS, "stability": STABILITY_ATTR
 PARAMETERS = ("friction", "load")  # as critfric.multiplicity.pathresult
 EVENT_KINDS = ("kink", "fold", "branch")
 POINT_VALUES = ("Un", "Ut", "X", "Y")  # (n, p) datasets of a path file's points
+MODE_NAME = re.compile(r"(positive|negative)_[0-9]{1,9}")  # the groups of a solve file's modes
 
 
 def check(f: h5py.File, kind: str, path: Path) -> None:
@@ -48,9 +54,10 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
                          "written by critfric, and is it whole?)", file=str(path))
 
     version = f.attrs.get("schema_version")
-    if not _attr_ok(version, "int") or not 1 <= int(version) <= SCHEMA_VERSION:
+    if not _attr_ok(version, "int") or not 1 <= int(version) <= NEWEST_VERSION:
         raise bad("attribute 'schema_version'", f"{version!r}; this critfric reads versions 1 "
-                  f"to {SCHEMA_VERSION} (a newer critfric wrote it?)")
+                  f"to {NEWEST_VERSION} (a newer critfric wrote it?)")
+    version = int(version)
     for name, want in ATTRS[kind].items():
         if not _attr_ok(f.attrs.get(name), want):
             raise bad(f"attribute {name!r}", f"missing or not {want}")
@@ -69,13 +76,15 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
         return obj[()]
 
     if kind == "path":
-        _check_path(f, dataset, bad)
+        _check_path(f, dataset, bad, version)
     elif kind in ("solve", "stability"):
-        n, arrays = _mesh(f, dataset, bad, str(f.attrs["element"]))
+        n, arrays = _mesh(f, dataset, bad, str(f.attrs["element"]), version)
+        dim = arrays["mesh/points"].shape[1]
         if kind == "solve":
             arrays.update({"critical/positive": dataset("critical/positive", "f", 1),
                            "critical/negative": dataset("critical/negative", "f", 1),
                            "eigen/alpha": dataset("eigen/alpha", "fc", 1)})
+            _check_frame(f, dataset, bad, arrays, dim)
         else:
             n_modes = int(f.attrs["modes"])
             friction = dataset("stability/friction", "f", 1)
@@ -89,14 +98,27 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
                 arrays[f"stability/{name}"] = values[np.isfinite(values)]  # NaN: lost branch
             for d in ("positive", "negative"):
                 if f"flutter/{d}" in f:
-                    arrays[f"flutter/{d}/shape"] = dataset(f"flutter/{d}/shape", "f", 2, 2)
+                    arrays[f"flutter/{d}/shape"] = dataset(f"flutter/{d}/shape", "f", 2, dim)
                     if len(arrays[f"flutter/{d}/shape"]) != n:
                         raise bad(f"dataset 'flutter/{d}/shape'", f"not {n} rows")
         modes = f.get("modes")
         for name in (modes.keys() if isinstance(modes, h5py.Group) else []):
-            arrays[f"modes/{name}/phi"] = dataset(f"modes/{name}/phi", "f", 2, 2)
+            if kind == "solve" and not (MODE_NAME.fullmatch(name)
+                                        and isinstance(modes[name], h5py.Group)):
+                raise bad(f"group 'modes/{name}'", "not a mode (positive_<k> or negative_<k>)")
+            arrays[f"modes/{name}/phi"] = dataset(f"modes/{name}/phi", "f", 2, dim)
+            for attr, bounds in (("alpha", None), ("r", (0.0, 1.0))):
+                if kind == "solve" and not _number_ok(f[f"modes/{name}"].attrs.get(attr),
+                                                      bounds, optional=attr == "r"):
+                    raise bad(f"attribute {attr!r} of group 'modes/{name}'",
+                              "missing or not a finite number"
+                              + (" in [0, 1]" if bounds else ""))
             for part in ("theta_n", "theta_t"):
                 arrays[f"modes/{name}/{part}"] = dataset(f"modes/{name}/{part}", "f", 1)
+                p = len(arrays["mesh/contact_nodes"])
+                if len(arrays[f"modes/{name}/{part}"]) != p:
+                    raise bad(f"dataset 'modes/{name}/{part}'", f"not {p} values (one per "
+                              "contact node)")
             if len(arrays[f"modes/{name}/phi"]) != n:
                 raise bad(f"dataset 'modes/{name}/phi'", f"{len(arrays[f'modes/{name}/phi'])} "
                           f"rows for {n} nodes")
@@ -119,17 +141,75 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
                 raise bad("dataset 'points/nu'", "values that are not finite")
 
 
-def _mesh(f: h5py.File, dataset, bad, element: str) -> tuple[int, dict]:
-    """The number of nodes and the /mesh arrays (points, cells, contact nodes, edges)."""
-    points = dataset("mesh/points", "f", 2, 2)
-    spec = get_element(element)
+def _mesh(f: h5py.File, dataset, bad, element: str, version: int) -> tuple[int, dict]:
+    """The number of nodes and the /mesh arrays (points (n, 2 or 3), cells of ``element`` in
+    that dimension, contact nodes, edges in 2D or faces in 3D, slip directions if stored)."""
+    obj = f.get("mesh/points")
+    dim = obj.shape[1] if isinstance(obj, h5py.Dataset) and obj.ndim == 2 else 2
+    if dim not in (2, 3):
+        raise bad("dataset 'mesh/points'", f"shape {obj.shape}; points have 2 or 3 coordinates")
+    if dim == 3 and version < SOLID_VERSION:
+        raise bad("dataset 'mesh/points'", f"3D points in a version-{version} file (3D files "
+                  f"are version {SOLID_VERSION} or later)")
+    declared = f.attrs.get("dim")
+    if declared is not None and not (_attr_ok(declared, "int") and int(declared) == dim):
+        raise bad("attribute 'dim'", f"{declared!r}, but the points have {dim} coordinates")
+    points = dataset("mesh/points", "f", 2, dim)
+    spec = get_element(element, dim)
     arrays = {"mesh/points": points,
               "mesh/cells": dataset("mesh/cells", "iu", 2, spec.n_local),
               "mesh/contact_nodes": dataset("mesh/contact_nodes", "iu", 1)}
-    edges = f.get("mesh/edges")
-    for name in (edges.keys() if isinstance(edges, h5py.Group) else []):
-        arrays[f"mesh/edges/{name}"] = dataset(f"mesh/edges/{name}", "iu", 2, spec.facet_nodes)
+    for kind, other in (("edges", "faces"), ("faces", "edges")):
+        groups = f.get(f"mesh/{kind}")
+        names = list(groups.keys()) if isinstance(groups, h5py.Group) else []
+        if names and kind == ("faces" if dim == 2 else "edges"):
+            raise bad(f"group 'mesh/{kind}'", f"boundary {kind} in a {dim}D mesh (its boundary "
+                      f"groups are {other if dim == 2 else kind})")
+        for name in names:
+            arrays[f"mesh/{kind}/{name}"] = dataset(f"mesh/{kind}/{name}", "iu", 2,
+                                                    spec.facet_nodes)
+    if "mesh/slip" in f:
+        slip = dataset("mesh/slip", "f", 2, 3)
+        if dim != 3 or len(slip) != len(arrays["mesh/contact_nodes"]):
+            raise bad("dataset 'mesh/slip'", f"{len(slip)} slip directions for "
+                      f"{len(arrays['mesh/contact_nodes'])} contact nodes of a {dim}D mesh")
+        arrays["mesh/slip"] = slip
     return len(points), arrays
+
+
+def _check_frame(f: h5py.File, dataset, bad, arrays: dict, dim: int) -> None:
+    """The frame attributes of a solve file (normal, tangent: unit, orthogonal, ``dim``
+    components) and, in 3D, its law, slip angle, slip directions and r of each eigenvalue."""
+    frame = {}
+    for name in ("normal", "tangent"):
+        value = f.attrs.get(name)
+        if not (isinstance(value, np.ndarray) and value.shape == (dim,)
+                and value.dtype.kind in "fiu" and np.all(np.isfinite(value))
+                and abs(np.linalg.norm(value) - 1.0) <= UNIT_TOL):
+            raise bad(f"attribute {name!r}", f"missing or not a unit vector of {dim} numbers")
+        frame[name] = value.astype(float)
+    if abs(frame["normal"] @ frame["tangent"]) > UNIT_TOL:
+        raise bad("attribute 'tangent'", "not orthogonal to the normal")
+    if dim == 2:
+        return
+    if _text(f.attrs.get("law", "")) not in LAWS:
+        raise bad("attribute 'law'", "missing or not one of " + ", ".join(LAWS))
+    if not _attr_ok(f.attrs.get("slip_angle"), "float"):
+        raise bad("attribute 'slip_angle'", "missing or not a finite number")
+    if "mesh/slip" not in arrays:
+        raise bad("dataset 'mesh/slip'", "missing")
+    slip = arrays["mesh/slip"]
+    if not np.all(np.isfinite(slip)) or np.any(
+            np.abs(np.linalg.norm(slip, axis=1) - 1.0) > UNIT_TOL) or np.any(
+            np.abs(slip @ frame["normal"]) > UNIT_TOL):
+        raise bad("dataset 'mesh/slip'", "not unit vectors in the contact plane")
+    r = dataset("eigen/r", "f", 1)
+    if len(r) != len(arrays["eigen/alpha"]):
+        raise bad("dataset 'eigen/r'", f"{len(r)} values for {len(arrays['eigen/alpha'])} "
+                  "eigenvalues")
+    if not np.all((r >= 0) & (r <= 1)):  # NaN fails too
+        raise bad("dataset 'eigen/r'", "values outside [0, 1]")
+    arrays["eigen/r"] = r
 
 
 def _finite_indices(arrays: dict, n: int, bad) -> None:
@@ -144,7 +224,7 @@ def _finite_indices(arrays: dict, n: int, bad) -> None:
         raise bad("dataset 'mesh/cells'", "no cell")
 
 
-def _check_path(f: h5py.File, dataset, bad) -> None:
+def _check_path(f: h5py.File, dataset, bad, version: int) -> None:
     """The datasets of a path file (layout in files/pathfile.py): every curve's points and
     pieces, the events, the isolated solutions, the arc lengths and the mesh if stored."""
     p, node = int(f.attrs["n_contact"]), int(f.attrs["node"])
@@ -222,7 +302,7 @@ def _check_path(f: h5py.File, dataset, bad) -> None:
         element = f["mesh/cells"].attrs.get("element") if "mesh/cells" in f else None
         if not _attr_ok(element, "element"):
             raise bad("attribute 'element' of dataset 'mesh/cells'", "missing or unknown")
-        n, arrays = _mesh(f, dataset, bad, _text(element))
+        n, arrays = _mesh(f, dataset, bad, _text(element), version)
         if len(arrays["mesh/contact_nodes"]) != p:
             raise bad("dataset 'mesh/contact_nodes'", f"not {p} nodes")
         _finite_indices(arrays, n, bad)
@@ -241,6 +321,15 @@ def _json_list(text: str, bound: int | None, p: int) -> bool:
                    for s in value)
     return all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < bound
                for v in value)
+
+
+def _number_ok(value, bounds, *, optional: bool = False) -> bool:
+    """A finite number (within ``bounds`` if given), or absent when ``optional``."""
+    if value is None:
+        return optional
+    if not _attr_ok(value, "float"):
+        return False
+    return bounds is None or bounds[0] <= float(value) <= bounds[1]
 
 
 def _text(value) -> str:

@@ -5,7 +5,9 @@ with the h -> 0 limits: Figs. 4 and 7) and ``s_convergence.png`` (coefficient vs
 |alpha_h - limit| vs h per element on log axes at one nu: Fig. 5).
 Solve file ``r.h5``: ``r_deformed.png`` (the eigenfunction Phi, Fig. 8), ``r_von_mises.png``
 (von Mises stress of Phi, Fig. 9), ``r_contact_forces.png`` (theta_n, theta_t along Gamma_C)
-and ``r_spectrum.png`` (eigenvalues in the complex plane, real critical ones marked).
+and ``r_spectrum.png`` (eigenvalues in the complex plane, real critical ones marked); of a 3D
+body ``r_contact_positive_0.png``, ``r_contact_negative_0.png`` (Phi and X on Gamma_C, see
+plots/solid.py) and ``r_spectrum.png`` (real eigenvalues coloured by r).
 Stability and path files: see plots/stability.py and plots/path.py (``p_diagram.png``).
 """
 
@@ -28,6 +30,7 @@ from ..files.export import SolveData, mode_fields, read_solve
 from ..files.sweepfile import read_sweep
 from .meshdraw import segments as _segments
 from .meshdraw import triangles as _triangles
+from .solid import contact_figures
 
 DPI = 150
 ALPHA_LABEL = r"critical friction coefficient $\mu_{\rm cr}$"
@@ -93,7 +96,8 @@ def _save(fig: Figure, path: Path, formats) -> list[Path]:
 # ------------------------------------------------------------------------------ sweeps
 def sweep_figures(path: Path, *, nu: float | None = None) -> dict[str, Figure]:
     """``critical`` (coefficients against nu, Figs. 4 and 7) and, with two sizes or more,
-    ``convergence`` (against h, Fig. 5)."""
+    ``convergence`` (against h, Fig. 5); a sweep over slip angles has ``directions`` only
+    (:mod:`.polar`)."""
     data = read_sweep(path)
     rows, limits = data["rows"], data["limits"]
     order = {el: i for i, el in enumerate(json.loads(data["attrs"]["grid"])["element"])}
@@ -101,6 +105,10 @@ def sweep_figures(path: Path, *, nu: float | None = None) -> dict[str, Figure]:
     title = f"{data['attrs'].get('case_name', '')}"
     if json.loads(data["attrs"]["grid"]).get("quantity") == "flutter":
         title += ": FLUTTER thresholds of steady sliding (critfric stability), not static"
+    if json.loads(data["attrs"]["grid"]).get("slip_angle") is not None:  # over directions
+        from .polar import directions_figures
+
+        return directions_figures(data, title)
     out = {"critical": _critical_vs_nu(rows, limits, title)}
     if len({r["size"] for r in rows if r["size"] is not None}) >= 2:
         out["convergence"] = _convergence(rows, limits, title, nu)
@@ -219,8 +227,11 @@ def _convergence(rows, limits, title, nu) -> Figure:
 # ------------------------------------------------------------------------------ solves
 def solve_figures(path: Path) -> dict[str, Figure]:
     """``deformed`` (Fig. 8), ``von_mises`` (Fig. 9), ``contact_forces`` (of the first stored
-    mode) and ``spectrum``."""
+    mode) and ``spectrum``; of a 3D body ``contact_<mode>`` (:mod:`.solid`) and
+    ``spectrum``."""
     data = read_solve(path)
+    if data.dim == 3:
+        return {**contact_figures(data), "spectrum": _spectrum(data)}
     out = {}
     if data.modes:
         name, mode = next(iter(data.modes.items()))
@@ -334,7 +345,8 @@ def _contact_forces(data: SolveData) -> Figure:
 
 
 def _spectrum(data: SolveData) -> Figure:
-    """All eigenvalues on symmetric-log axes, and a linear view around the critical ones."""
+    """All eigenvalues on symmetric-log axes, and a linear view around the critical ones
+    (3D: the real ones coloured by r)."""
     alpha = np.asarray(data.alpha)
     real = alpha.imag == 0
     marked = np.concatenate([data.positive[:1], data.negative[:1]])
@@ -343,12 +355,18 @@ def _spectrum(data: SolveData) -> Figure:
     fig = Figure(figsize=(12.8, 6.0))
     for k, ax in enumerate(fig.subplots(1, 2)):
         ax.scatter(alpha.real[~real], alpha.imag[~real], s=12, c="0.5", label="complex")
-        ax.scatter(alpha.real[real], alpha.imag[real], s=20, c="tab:blue",
-                   label="real: critical coefficients")
+        if data.r is None:
+            ax.scatter(alpha.real[real], alpha.imag[real], s=20, c="tab:blue",
+                       label="real: critical coefficients")
+        else:
+            shade = ax.scatter(alpha.real[real], alpha.imag[real], s=20, c=data.r[real],
+                               cmap="viridis", vmin=0.0, vmax=1.0,
+                               label="real: critical coefficients (colour: r)")
         for v, name in [(data.positive, "lowest positive"), (data.negative, "lowest negative")]:
             if len(v):
+                r = "" if data.r is None else f", r = {data.r_of(v[:1])[0]:.3g}"
                 ax.scatter([v[0]], [0], s=120, facecolors="none", edgecolors="tab:red", lw=2,
-                           label=f"{name}: α = {v[0]:.6g}")
+                           label=f"{name}: α = {v[0]:.6g}{r}")
         ax.axhline(0, color="0.7", lw=0.5)
         ax.axvline(0, color="0.7", lw=0.5)
         ax.set_xlabel(r"Re $\alpha$")
@@ -367,6 +385,9 @@ def _spectrum(data: SolveData) -> Figure:
             ax.set_aspect("equal")
             ax.set_title(f"Near the critical coefficients ({outside} eigenvalues outside)",
                          fontsize=9)
+            if data.r is not None:  # r = 0: an exact static branch of both slip laws
+                fig.colorbar(shade, cax=ax.inset_axes([1.04, 0.0, 0.03, 1.0]),
+                             label="r of the real eigenvalues (0: exact static branch)")
     handles, labels = fig.axes[1].get_legend_handles_labels()
     fig.legend(handles, labels, fontsize=9, loc="lower center", ncol=len(labels))
     fig.suptitle(f"Spectrum of (3.2): {data.attrs.get('case_name', '')}, "

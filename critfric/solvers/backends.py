@@ -34,7 +34,7 @@ import scipy.sparse.linalg as spla
 from ..errors import SolverError
 from ..guards import usable_cpus
 from .pardiso import SINGULAR as _SINGULAR
-from .pardiso import PardisoFactor, PardisoPlan, pardiso_library, upper_triangle
+from .pardiso import PardisoFactor, PardisoPlan, pardiso_library, symmetrize, upper_triangle
 from .superlu import trailing_blocks
 
 BACKENDS = ("scipy", "pardiso")
@@ -146,12 +146,13 @@ class ScipySchur:
             if blocks is None:
                 blocks = (lu.L[n - k:, n - k:].toarray(), lu.U[n - k:, n - k:].toarray())
             S = blocks[0] @ blocks[1]
+            blocks = None  # three k x k arrays at most
         else:  # SuperLU reordered the tail after all: S^-1 from k solves
             E = np.zeros((n, k))
             E[tail, np.arange(k)] = 1.0
             S = np.linalg.inv(lu.solve(E)[tail])
         self._lu, self._index, self.shape = lu, np.asarray(index), (n, n)
-        self.S = 0.5 * (S + S.T)
+        self.S = symmetrize(S)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """A^-1 b for b of shape (n,) or (n, m)."""
@@ -233,7 +234,7 @@ class SplitSchur:
             raise SolverError("the Schur complement onto the separator is not positive "
                               f"definite: {_SINGULAR}") from None
         S = S_I[:k, :k] - self._S_sc.T @ la.cho_solve(self._sep, self._S_sc)
-        self.S = 0.5 * (S + S.T)
+        self.S = symmetrize(S)
 
     def _map(self, fn, items) -> list:
         """fn over items, ``workers`` at a time (in order)."""

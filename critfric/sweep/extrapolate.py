@@ -72,25 +72,28 @@ class Limit:
 
     nu: float
     element: str
-    family: str  # "positive" or "negative"
+    family: str  # "positive", "negative" or "minimum" (over slip directions)
     limit: float
     order: float
     error: float
     n_sizes: int
     status: str  # "ok" or "not converged: <why>"
+    slip_angle: float | None = None  # the angle of a sweep over slip angles
 
     def to_json(self) -> dict:
         def num(v):
             return float(v) if math.isfinite(v) else None
 
-        return {"nu": self.nu, "element": self.element, "family": self.family,
-                "limit": num(self.limit), "order": num(self.order), "error": num(self.error),
-                "n_sizes": self.n_sizes, "status": self.status}
+        out = {"nu": self.nu, "element": self.element, "family": self.family,
+               "limit": num(self.limit), "order": num(self.order), "error": num(self.error),
+               "n_sizes": self.n_sizes, "status": self.status}
+        return out if self.slip_angle is None else {**out, "slip_angle": self.slip_angle}
 
     def to_row(self) -> dict:
         return dict(nu=self.nu, element=self.element, family=self.family, limit=self.limit,
                     order=self.order, error=self.error, n_sizes=self.n_sizes,
-                    status=self.status)
+                    status=self.status,
+                    slip_angle=math.nan if self.slip_angle is None else self.slip_angle)
 
 
 def observed_order(h, f) -> float:
@@ -202,25 +205,36 @@ def family_limit(h, f, element: str | None = None) -> tuple[float, float, float,
     return limit, p, error, "ok"
 
 
-def limits_of(rows: list[dict]) -> list[Limit]:
-    """Limits of every (nu, element, family) of sweep rows with at least three sizes."""
+def limits_of(rows: list[dict], minima: list[dict] = ()) -> list[Limit]:
+    """Limits of every (nu, slip angle, element, family) of sweep rows with at least three
+    sizes, and of the minima over slip directions (family "minimum") of each (nu, element)."""
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
         if r["size"] is not None:
-            groups.setdefault((r["nu"], r["element"]), []).append(r)
+            key = (r["nu"], r.get("slip_angle"), r["element"], ("positive", "negative"))
+            groups.setdefault(key, []).append(r)
+    for m in minima:
+        if m["size"] is not None:
+            value = m["positive"]
+            row = {"size": m["size"], "status": "ok" if math.isfinite(value) else "none",
+                   "minimum": [value]}
+            groups.setdefault((m["nu"], None, m["element"], ("minimum",)), []).append(row)
     out: list[Limit] = []
-    erratic: dict[tuple, str] = {}  # (nu, family) -> why
-    for (nu, element), rs in sorted(groups.items(), key=lambda kv: (kv[0][0], kv[0][1])):
+    erratic: dict[tuple, str] = {}  # (nu, angle, family) -> why
+    for (nu, angle, element, families), rs in sorted(groups.items(), key=lambda kv: (
+            kv[0][0], kv[0][3] == ("minimum",), -1e9 if kv[0][1] is None else kv[0][1],
+            kv[0][2])):
         if len(rs) < 3:
             continue
         h = [r["size"] for r in rs]
-        for family in ("positive", "negative"):
+        for family in families:
             f = [r[family][0] if r["status"] == "ok" and r[family] else math.nan for r in rs]
             limit, p, err, status = family_limit(h, f, element)
-            out.append(Limit(nu, element, family, limit, p, err, len(rs), status))
+            out.append(Limit(nu, element, family, limit, p, err, len(rs), status, angle))
             swing = _swing(h, f)
             if swing > ERRATIC:
-                erratic[nu, family] = f"{element} swings by {swing:.0%} over its three finest sizes"
+                erratic[nu, angle, family] = (f"{element} swings by {swing:.0%} over its three "
+                                              "finest sizes")
     _flag_disagreement(out, erratic)
     return out
 
@@ -239,14 +253,14 @@ def _flag_disagreement(limits: list[Limit], erratic: dict[tuple, str]) -> None:
     mesh-dependent family, e.g. the positive one of a mixed-state base, which converges on
     nested quad meshes, 8.28 and 8.33 (Q1, Q2), and jumps between 11.6 and 228 on triangles)."""
     for lim in limits:
-        why = erratic.get((lim.nu, lim.family))
+        why = erratic.get((lim.nu, lim.slip_angle, lim.family))
         if lim.status == "ok" and why:
             lim.status = f"not converged: elements disagree ({why}; {lim.element} {lim.limit:.6g})"
             lim.limit = math.nan
     by_family: dict[tuple, list[Limit]] = {}
     for lim in limits:
         if lim.status == "ok":
-            by_family.setdefault((lim.nu, lim.family), []).append(lim)
+            by_family.setdefault((lim.nu, lim.slip_angle, lim.family), []).append(lim)
     for group in by_family.values():
         bad = set()
         for i, a in enumerate(group):

@@ -1,9 +1,15 @@
-"""Sweeps over the Poisson ratio, the mesh size and the element, with h -> 0 limits.
+"""Sweeps over the Poisson ratio, the mesh size, the element and (3D) the slip angle, with
+h -> 0 limits and the body's coefficient over slip directions.
 
-A sweep point is (nu, size, element). Points sharing (size, element) share one mesh and one
-assembly (``prepare``): only ``lam K_lam + G K_G`` and the eigenproblem change with nu. Each
-worker keeps a small cache of prepared systems and the scheduler (:mod:`critfric.workers`)
-hands a worker all the points of a (size, element) group, split only to balance the load.
+A sweep point is (nu, size, element[, slip angle]). Points sharing (size, element) share one
+mesh and one assembly (``prepare``): only ``lam K_lam + G K_G``, the contact basis (turned
+from the kept stiffness parts, :func:`critfric.solve.turned`) and the eigenproblem change with
+nu and the angle. Each worker keeps a small cache of prepared systems and the scheduler
+(:mod:`critfric.workers`) hands a worker all the points of a (size, element) group, split only
+to balance the load. After the points of an angle sweep, a second pass locates the minimum
+over directions of each (nu, size, element) (:mod:`.directions`) on new workers of the same
+kind (a worker meshes each of its groups once more; in this process, ``-j 1``, the cached
+mesh serves both passes).
 
 Every finished point is appended to the sweep file (:mod:`critfric.sweepfile`) by the parent
 at once, so an interrupted sweep re-run with the same arguments computes only what is missing.
@@ -17,17 +23,27 @@ import math
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..case.schema import SWEEP_GRADING, Case, from_dict
 from ..errors import CaseError
 from ..files import sweepfile
 from ..guards import usable_cpus
-from ..solve import Prepared, preflight, prepare, singular_of, solve_prepared
+from ..meshing.solid import is_solid
+from ..solve import Prepared, preflight, prepare, singular_of, solve_prepared, turned
 from ..stability import stability_prepared
 from . import workers
+from .directions import (
+    MINIMUM_KEYS,
+    MinimumTask,
+    failed_minimum,
+    minimum_key,
+    minimum_tasks,
+    task_minimum,
+)
 from .extrapolate import Limit, limits_of
 from .grid import (
     MAX_POINTS,
@@ -38,9 +54,12 @@ from .grid import (
     parse_elements,
     parse_nu,
     parse_sizes,
+    parse_slip_angles,
 )
+from .report import report_sweep  # noqa: F401 -- re-exported for the command line
 
 CACHE_SIZE = 2  # prepared systems kept per worker process
+TURNED_SIZE = 1  # ... and contact bases turned to another slip angle
 
 
 def sweep_case(case: Case, sizes) -> tuple[Case, str | None]:
@@ -49,7 +68,7 @@ def sweep_case(case: Case, sizes) -> tuple[Case, str | None]:
     ``SWEEP_GRADING`` h there); the second value is a note saying so (None: unchanged)."""
     m, shape = case.mesh, case.geometry["shape"]
     if (len([s for s in sizes if s is not None]) < 3 or m["grading"] is not None
-            or m["structured"] or shape in ("mesh", "file")):
+            or m["structured"] or shape in ("mesh", "file") or is_solid(case)):
         return case, None
     graded = case.with_overrides({"mesh.grading": SWEEP_GRADING})
     try:
@@ -66,11 +85,13 @@ def sweep_case(case: Case, sizes) -> tuple[Case, str | None]:
 
 
 def _overrides(point: Point) -> dict:
-    return {"material.nu": point.nu, "mesh.size": point.size, "mesh.element": point.element}
+    out = {"material.nu": point.nu, "mesh.size": point.size, "mesh.element": point.element}
+    return out if point.slip_angle is None else {**out, "solve.slip_angle": point.slip_angle}
 
 
 # ------------------------------------------------------------------------------ one point
 _CACHE: OrderedDict[tuple, Prepared] = OrderedDict()
+_TURNED: OrderedDict[tuple, Prepared] = OrderedDict()
 _CACHE_LOCK = threading.Lock()  # Dask runs tasks in threads; gmsh is not thread-safe
 
 
@@ -85,6 +106,8 @@ def worker_spec(case: Case, *, reuse: bool = True, max_dofs: int | None = None,
 
 
 def _prepared(spec: dict, case: Case, point: Point) -> Prepared:
+    """The prepared mesh of ``point``'s (size, element), its contact basis turned to the
+    point's slip angle (both cached: one mesh serves every nu and angle of a group)."""
     guards = spec.get("guards", {})
     if not spec["reuse"]:
         with _CACHE_LOCK:
@@ -96,11 +119,22 @@ def _prepared(spec: dict, case: Case, point: Point) -> Prepared:
             while len(_CACHE) > CACHE_SIZE:
                 _CACHE.popitem(last=False)
         _CACHE.move_to_end(key)
-        return _CACHE[key]
+        prep = _CACHE[key]
+        if point.slip_angle is None or prep.mesh.dim != 3:
+            return prep
+        key += (point.slip_angle,)
+        if key not in _TURNED:
+            _TURNED[key] = turned(prep, case)
+            while len(_TURNED) > TURNED_SIZE:
+                _TURNED.popitem(last=False)
+        return _TURNED[key]
 
 
-def run_point(spec: dict, point: Point) -> dict:
-    """Solve one point (in a worker); a failure is returned as a row, never raised."""
+def run_point(spec: dict, point: Point | MinimumTask) -> dict:
+    """Solve one point (in a worker), or locate one minimum over directions; a failure is
+    returned as a row, never raised."""
+    if isinstance(point, MinimumTask):
+        return _run_minimum(spec, point)
     t0 = time.perf_counter()
     try:
         base = from_dict(spec["raw"], source=spec["source"], name=spec["name"],
@@ -109,7 +143,11 @@ def run_point(spec: dict, point: Point) -> dict:
         if spec.get("quantity", "critical") == "flutter":
             return _flutter_row(point, stability_prepared(_prepared(spec, case, point), case),
                                 t0)
-        result = solve_prepared(_prepared(spec, case, point), case)
+        prep = _prepared(spec, case, point)
+        if point.slip_angle is not None and prep.mesh.dim != 3:
+            raise CaseError("applies to 3D bodies; this mesh is 2D", file=case.source,
+                            key="--slip-angle")
+        result = solve_prepared(prep, case)
     except Exception as exc:
         return empty_row(point, f"failed: {type(exc).__name__}: {exc}",
                          time.perf_counter() - t0)
@@ -118,8 +156,33 @@ def run_point(spec: dict, point: Point) -> dict:
     row = empty_row(point, "ok" if len(pos) or len(neg) else "no-real-eigenvalue")
     row.update(h=result.h, n_dofs=result.n_dofs, n_contact=result.n_contact,
                positive=[float(v) for v in pos], negative=[float(v) for v in neg],
+               r_positive=[float(v) for v in result.r_of(pos)] if result.dim == 3 else [],
                complex_count=result.complex_count, seconds=time.perf_counter() - t0)
     return row
+
+
+def _run_minimum(spec: dict, task: MinimumTask) -> dict:
+    """Locate the minimum over directions of ``task`` (:mod:`.directions`): every evaluation
+    one solve of the group's prepared mesh at that angle."""
+    t0 = time.perf_counter()
+    try:
+        base = from_dict(spec["raw"], source=spec["source"], name=spec["name"],
+                         text=spec["text"])
+        point = Point(task.nu, task.size, task.element)
+        case = base.with_overrides(_overrides(point))
+        prep = _prepared(spec, case, point)
+
+        def alpha_at(angle: float) -> tuple[float, float]:
+            result = solve_prepared(prep, case.with_overrides({"solve.slip_angle": angle}))
+            if not len(result.positive):
+                return math.inf, math.nan
+            return float(result.positive[0]), float(result.r_of(result.positive[:1])[0])
+
+        row = task_minimum(task, alpha_at)
+    except Exception as exc:
+        return failed_minimum(task, f"failed: {type(exc).__name__}: {exc}",
+                              time.perf_counter() - t0)
+    return {**row, "seconds": time.perf_counter() - t0}
 
 
 def _flutter_row(point: Point, result, t0: float) -> dict:
@@ -136,7 +199,8 @@ def _flutter_row(point: Point, result, t0: float) -> dict:
 # ------------------------------------------------------------------------------ the sweep
 @dataclass
 class Sweep:
-    """A finished sweep: its file, every point (grid order), the limits and what ran now."""
+    """A finished sweep: its file, every point (grid order), the limits and what ran now;
+    for an angle sweep also the minima over directions, one per (nu, size, element)."""
 
     path: Path
     grid: Grid
@@ -144,13 +208,20 @@ class Sweep:
     limits: list[Limit]
     computed: int
     seconds: float
+    minima: list[dict] = field(default_factory=list)
+    located: int = 0  # minima located now
 
     def summary(self) -> dict:
         """The JSON of ``critfric sweep --json``."""
         keys = ("nu", "size", "element", "h", "n_dofs", "n_contact", "positive", "negative",
                 "complex_count", "status", "seconds")
+        if self.grid.slip_angle is not None:
+            keys = keys[:3] + ("slip_angle",) + keys[3:8] + ("r_positive",) + keys[8:]
         points = [{k: _json_value(r[k]) for k in keys} for r in self.rows]
-        return {"points": points, "limits": [lim.to_json() for lim in self.limits]}
+        out = {"points": points, "limits": [lim.to_json() for lim in self.limits]}
+        if self.grid.slip_angle is not None:
+            out["minima"] = [{k: _json_value(m[k]) for k in MINIMUM_KEYS} for m in self.minima]
+        return out
 
     def to_dataframe(self):
         """The points as a pandas DataFrame (one row a point, grid order; ``positive`` and
@@ -163,14 +234,16 @@ class Sweep:
                               "Sweep.summary()['points'] is the same table as plain data") from None
         table = self.summary()["points"]
         for row in table:
-            for family in ("positive", "negative"):
-                row[family] = row[family][0] if row[family] else math.nan
+            for family in ("positive", "negative", "r_positive"):
+                if family in row:
+                    row[family] = row[family][0] if row[family] else math.nan
         return pd.DataFrame(table)
 
     def __repr__(self) -> str:
         ok = sum(r["status"] == "ok" for r in self.rows)
+        minima = f", {len(self.minima)} minima over directions" if self.minima else ""
         return (f"Sweep({str(self.path)!r}, {len(self.rows)} points ({ok} ok, {self.computed} "
-                f"computed now), {len(self.limits)} limits)")
+                f"computed now), {len(self.limits)} limits{minima})")
 
 
 def _json_value(v):
@@ -185,14 +258,17 @@ def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = 
               scheduler: str | None = None, force: bool = False, reuse: bool = True,
               on_point: Callable[[dict, int, int], None] | None = None,
               max_dofs: int | None = None, trust_geo: bool = False) -> Sweep:
-    """Run (or resume) a sweep into ``output``; return every point and the h -> 0 limits.
+    """Run (or resume) a sweep into ``output``; return every point and the h -> 0 limits
+    (and, over two slip directions or more, the minimum over directions of each (nu, size,
+    element), located after the points: :mod:`.directions`).
 
     jobs      : local worker processes (default: all cores); 1 runs in this process.
     scheduler : address of a Dask distributed scheduler, instead of local processes.
     force     : discard an existing ``output`` written for another case or grid.
-    reuse     : reuse meshes and assemblies across nu (off only to measure its benefit).
-    on_point  : called as on_point(row, done, total) after each point is written, and once
-                with row None before the first (done: the points already in the file).
+    reuse     : reuse meshes and assemblies across nu and angles (off only to measure it).
+    on_point  : called as on_point(row, done, total) after each point (or minimum) is
+                written, and once with row None before the first (done: those already in
+                the file).
     max_dofs, trust_geo : the guards of :func:`critfric.solve.prepare`, for every point.
     """
 
@@ -204,37 +280,68 @@ def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = 
         done = sweepfile.open_sweep(path, case=case, grid=grid, force=force)
         points = grid.points()
         todo = [p for p in points if p.key not in done]
-        finished = len(points) - len(todo)
+        with_minima = grid.directions >= 2
+        located = {minimum_key(m): m for m in sweepfile.read_sweep(path)["minima"]}
+        total = len(points) + (len(grid.nu) * len(grid.size) * len(grid.element)
+                               if with_minima else 0)
+        finished = len(points) - len(todo) + len(located)
         if on_point is not None:
-            on_point(None, finished, len(points))
+            on_point(None, finished, total)
         spec = worker_spec(case, reuse=reuse, max_dofs=max_dofs, trust_geo=trust_geo,
                            quantity=grid.quantity)
-        jobs = max(1, min(jobs or usable_cpus(), len(todo)))
-        if not todo:
-            stream = iter(())
-        elif client is not None:
-            stream = workers.run_dask(client, run_point, spec, todo)
-        elif jobs == 1:
-            stream = _in_process(spec, todo)
-        else:
-            stream = workers.run_local(jobs, run_point, spec, todo)
-        try:
+        with _stream(spec, todo, jobs, client) as stream:
             for point, row in stream:
                 sweepfile.append_point(path, row)  # before anything else: never lost
                 finished += 1
                 if on_point is not None:
-                    on_point(row, finished, len(points))
-        finally:
-            if hasattr(stream, "close"):
-                stream.close()  # stops the workers, also on Ctrl-C
+                    on_point(row, finished, total)
+        stored = {sweepfile.row_key(r): r for r in sweepfile.read_sweep(path)["rows"]}
+        rows = [stored[p.key] for p in points]
+        tasks = minimum_tasks(rows, set(located)) if with_minima else []
+        with _stream(spec, tasks, jobs, client) as stream:
+            for task, found in stream:
+                if "bracket_lo" not in found:  # the worker died: a point's failed row
+                    found = failed_minimum(task, found["status"], found["seconds"])
+                sweepfile.append_minimum(path, found)
+                located[minimum_key(found)] = found
+                finished += 1
+                if on_point is not None:
+                    value = found["positive"]
+                    on_point({**found, "status": f"minimum over directions: {found['status']}",
+                              "positive": [value] if math.isfinite(value) else []},
+                             finished, total)
     finally:
         if client is not None:
             client.close()
-    stored = {sweepfile.row_key(r): r for r in sweepfile.read_sweep(path)["rows"]}
-    rows = [stored[p.key] for p in points]
-    limits = limits_of(rows)
-    sweepfile.write_limits(path, limits, grid, rows)
-    return Sweep(path, grid, rows, limits, len(todo), time.perf_counter() - t0)
+    minima = sorted(located.values(), key=lambda m: (grid.element.index(m["element"])
+                                                     if m["element"] in grid.element else 99,
+                                                     -1.0 if m["size"] is None else -m["size"],
+                                                     m["nu"]))
+    limits = limits_of(rows, minima)
+    sweepfile.write_limits(path, limits, grid, rows, minima)
+    return Sweep(path, grid, rows, limits, len(todo), time.perf_counter() - t0, minima,
+                 len(tasks))
+
+
+@contextmanager
+def _stream(spec: dict, items: list, jobs: int | None, client) -> Iterator:
+    """(item, row) pairs as the points or minimum tasks ``items`` finish: on the Dask cluster
+    of ``client``, on ``jobs`` local workers, or here (one job); the workers stop when the
+    block ends, also on an exception or Ctrl-C."""
+    jobs = max(1, min(jobs or usable_cpus(), len(items)))
+    if not items:
+        stream = iter(())
+    elif client is not None:
+        stream = workers.run_dask(client, run_point, spec, items)
+    elif jobs == 1:
+        stream = _in_process(spec, items)
+    else:
+        stream = workers.run_local(jobs, run_point, spec, items)
+    try:
+        yield stream
+    finally:
+        if hasattr(stream, "close"):
+            stream.close()
 
 
 def _in_process(spec: dict, points: list[Point]):
@@ -254,47 +361,12 @@ def default_output(case: Case, grid: Grid) -> Path:
     return Path(f"{case.name}_sweep_{hashlib.sha1(key).hexdigest()[:6]}.h5")
 
 
-def report_sweep(sweep: Sweep) -> str:
-    """The text summary of ``critfric sweep``: every point, then the h -> 0 limits."""
-    def num(v, fmt):
-        return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else fmt % v
-
-    rows = sweep.rows
-    lines = [f"sweep {sweep.path}: {len(rows)} points ({len(sweep.grid.nu)} nu x "
-             f"{len(sweep.grid.size)} size x {len(sweep.grid.element)} element), "
-             f"{sweep.computed} computed now in {sweep.seconds:.1f} s"]
-    head = (f"{'nu':>7} {'element':<7} {'size':>8} {'h':>8} {'n_dofs':>8} {'p':>5} "
-            f"{'lowest > 0':>14} {'lowest < 0':>14} {'complex':>7} {'seconds':>8}  status")
-    lines += [head, "-" * len(head)]
-    for r in rows:
-        v = {k: _json_value(r[k]) for k in ("size", "h", "n_dofs", "n_contact",
-                                            "complex_count")}
-        pos = r["positive"][0] if r["positive"] else None
-        neg = r["negative"][0] if r["negative"] else None
-        lines.append(f"{r['nu']:>7.4g} {r['element']:<7} {num(v['size'], '%.4g'):>8} "
-                     f"{num(v['h'], '%.4g'):>8} {num(v['n_dofs'], '%d'):>8} "
-                     f"{num(v['n_contact'], '%d'):>5} {num(pos, '%.10f'):>14} "
-                     f"{num(neg, '%.8f'):>14} {num(v['complex_count'], '%d'):>7} "
-                     f"{r['seconds']:>8.2f}  {r['status']}")
-    if not sweep.limits:
-        lines.append("h -> 0 limits: need at least three sizes (--size h1,h2,h3)")
-        return "\n".join(lines)
-    lines.append("")
-    lines.append("h -> 0 limits (a fit f0 + C h^p to the four finest sizes, Richardson's "
-                 "extrapolation with three; observed order p; - where not extrapolated)")
-    head = f"{'nu':>7} {'element':<7} {'family':<8} {'limit':>14} {'error':>9} {'p':>5}  status"
-    lines += [head, "-" * len(head)]
-    for lim in sweep.limits:
-        lines.append(f"{lim.nu:>7.4g} {lim.element:<7} {lim.family:<8} "
-                     f"{num(lim.limit, '%.10f'):>14} {num(lim.error, '%.1e'):>9} "
-                     f"{num(lim.order, '%.2f'):>5}  {lim.status}")
-    return "\n".join(lines)
-
-
 def make_grid(case: Case, *, nu: str | None = None, size: str | None = None,
               element: str | None = None, max_dofs: int | None = None,
-              trust_geo: bool = False, quantity: str = "critical") -> Grid:
-    """The grid of a sweep of ``case``; options left out take the case's own value.
+              trust_geo: bool = False, quantity: str = "critical",
+              slip_angle: str | None = None) -> Grid:
+    """The grid of a sweep of ``case``; options left out take the case's own value
+    (``slip_angle``: None sweeps no angle, the case's own ``[solve] slip_angle`` is used).
 
     Every (size, element) is validated against the case here, before any work is done, with
     the checks of a solve that need no mesh (resource estimate, .geo safety).
@@ -304,16 +376,45 @@ def make_grid(case: Case, *, nu: str | None = None, size: str | None = None,
     case, graded = sweep_case(case, sizes)
     notes = notes + ([graded] if graded else [])
     elements = parse_elements(element) if element is not None else [case.mesh["element"]]
-    total = len(nus) * len(sizes) * len(elements)
+    if quantity not in QUANTITIES:
+        raise CaseError(f"got {quantity!r}; allowed: " + ", ".join(QUANTITIES),
+                        key="--quantity")
+    angles = None
+    if slip_angle is not None:
+        angles, more = parse_slip_angles(slip_angle)
+        notes += more + _check_angles(case, quantity, angles)
+    total = len(nus) * len(sizes) * len(elements) * len(angles or [None])
     if total > MAX_POINTS:
-        raise CaseError(f"{len(nus)} nu x {len(sizes)} sizes x {len(elements)} elements = "
-                        f"{total} points; allowed: at most {MAX_POINTS} points per sweep",
-                        key="--nu")
+        raise CaseError(f"{len(nus)} nu x {len(sizes)} sizes x {len(elements)} elements"
+                        + (f" x {len(angles)} slip angles" if angles else "") + f" = {total} "
+                        f"points; allowed: at most {MAX_POINTS} points per sweep", key="--nu")
     for s in sizes:
         for el in elements:
             preflight(case.with_overrides(_overrides(Point(nus[0], s, el))),
                       max_dofs=max_dofs, trust_geo=trust_geo)
-    if quantity not in QUANTITIES:
-        raise CaseError(f"got {quantity!r}; allowed: " + ", ".join(QUANTITIES),
-                        key="--quantity")
-    return Grid(nus, sizes, elements, notes, quantity)
+    return Grid(nus, sizes, elements, notes, quantity, angles)
+
+
+def _check_angles(case: Case, quantity: str, angles: list[float]) -> list[str]:
+    """Refuse a slip-angle axis that the case cannot take; the notes about it."""
+    shape = case.geometry["shape"]
+    if quantity != "critical":
+        raise CaseError(f"applies to --quantity critical, not {quantity}", key="--slip-angle")
+    if not is_solid(case) and shape != "file":  # a file's dimension is known once read
+        raise CaseError(f"applies to 3D bodies (box, prism, a 3D mesh or mesh file); this "
+                        f"case's body is 2D (geometry.shape = {shape!r}; the 2D slip sign is "
+                        "[solve] gamma)", file=case.source, key="--slip-angle")
+    if any(r["slip_angle"] is not None for r in case.contact["rules"] or []):
+        raise CaseError("sets the slip angle of some contact nodes; allowed with --slip-angle: "
+                        "rules without slip_angle (the swept angle turns every slipping node, "
+                        "which the minimum over directions and alpha(angle + 180) = "
+                        "-alpha(angle) need)", file=case.source, key="contact.rules")
+    for angle in (min(angles), max(angles)):  # what [solve] slip_angle accepts
+        try:
+            case.with_overrides({"solve.slip_angle": angle})
+        except CaseError as exc:
+            raise CaseError(f"got {angle:g}: {exc.detail}", key="--slip-angle") from None
+    if Grid([], [], [], slip_angle=angles).directions < 2:
+        return [("one slip direction (and its reverse) only: no minimum over directions is "
+                 "located; give two angles or more that differ modulo 180")]
+    return []
