@@ -17,7 +17,11 @@ from helpers import REPO
 README = (REPO / "README.md").read_text()
 FULL = os.environ.get("CRITFRIC_README_FULL") == "1"
 QUICKER = {"--nu 0:0.5:21": "--nu 0:0.5:3", "--size 0.1,0.05,0.025,0.0125": "--size 0.2,0.1,0.05",
-           "stability unit-square --size 0.05": "stability unit-square --size 0.125"}
+           "stability unit-square --size 0.05": "stability unit-square --size 0.125",
+           "sweep box --slip-angle 0:180:13": "sweep box --slip-angle 0:180:4 --size 0.3 "
+                                              "--element P1",
+           "sweep box --size 0.2,0.1,0.05 --element P2": "sweep box --size 0.4,0.3,0.2 "
+                                                         "--element P1"}
 
 
 def _blocks(language: str) -> list[str]:
