@@ -43,9 +43,10 @@ $(NOFAST)/.installed: pyproject.toml $(STAMP)
 	$(NOFAST)/bin/python -m pip install -q --disable-pip-version-check -e '.[test]'
 	@touch $@
 
+# (the README's commands, one long serial test, run once: in `make test`)
 test-nofast: $(NOFAST)/.installed
 	$(NOFAST)/bin/python -c 'import importlib.util as u; assert u.find_spec("pypardiso") is None'
-	$(NOFAST)/bin/python -m pytest -q -n auto
+	$(NOFAST)/bin/python -m pytest -q -n auto --deselect tests/test_readme.py::test_every_readme_command_runs_in_order
 
 # the long validation study (minutes; not part of `make test`): h -> 0 limits of graded sweeps
 # (unit square, inclined body, mixed contact states; P1, P2, Q1, Q2; five sizes) against
