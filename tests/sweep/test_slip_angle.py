@@ -108,7 +108,9 @@ def test_the_minimum_over_directions_is_located_exactly_between_samples(box, tmp
     assert min(found) >= m["positive"] * (1 - 1e-9)
     fine = np.array(found[-21:]) - m["positive"]  # a parabola through the fine scan
     a2, a1, _ = np.polyfit(scan[-21:] - m["slip_angle"], fine, 2)
-    assert a2 > 0 and abs(a1 / (2 * a2)) < 1e-5  # its vertex: the angle, to ~1e-6 degree
+    # its vertex: the angle, to 1e-4 degree (the value is flat to round-off within a few
+    # 1e-6 degree of it: sqrt(eps / curvature))
+    assert a2 > 0 and abs(a1 / (2 * a2)) < 1e-4
     (stored,) = read_sweep(tmp_path / "m.h5")["minima"]  # the file holds what was reported
     assert {k: stored[k] for k in m} == m
     assert sweep.summary()["minima"][0]["positive"] == m["positive"]
