@@ -231,16 +231,20 @@ def _extract(spec, groups: dict[str, list[int]]) -> Mesh:
     cells, volume = orient(points, lookup[tags], spec.name)
     if np.any(np.abs(volume) <= 1e-12 * np.max(np.abs(volume))):
         raise SolverError("gmsh produced degenerate cells; try a different mesh size")
+    rows = {name: np.concatenate([
+        np.asarray(gmsh.model.mesh.getElementsByType(spec.gmsh_facet, s)[1],
+                   dtype=np.int64).reshape(-1, spec.facet_nodes)[:, :spec.facet_vertices]
+        for s in surfaces]) for name, surfaces in groups.items()}
+    every = np.concatenate(list(rows.values()))
+    cell, local, boundary = locate_faces(cells, spec, lookup[every])  # the cell faces ranked once
+    ok = (cell >= 0) & boundary & (lookup[every] >= 0).all(axis=1)
+    ends = np.cumsum([len(r) for r in rows.values()])[:-1]
     faces = {}
-    for name, surfaces in groups.items():
-        rows = np.concatenate([
-            np.asarray(gmsh.model.mesh.getElementsByType(spec.gmsh_facet, s)[1],
-                       dtype=np.int64).reshape(-1, spec.facet_nodes)[:, :spec.facet_vertices]
-            for s in surfaces])
-        cell, local, boundary = locate_faces(cells, spec, lookup[rows])
-        if np.any(cell < 0) or not np.all(boundary) or np.any(lookup[rows] < 0):
+    for name, c, loc, good in zip(rows, np.split(cell, ends), np.split(local, ends),
+                                  np.split(ok, ends)):
+        if not good.all():
             raise SolverError(f"gmsh's faces of {name!r} are not boundary faces of its cells")
-        faces[name] = facets(cells, spec, cell, local)
+        faces[name] = facets(cells, spec, c, loc)
     return Mesh(points, cells, spec.name, faces=faces)
 
 
