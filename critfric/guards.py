@@ -5,7 +5,10 @@ and vertex count (``nodes(h) = k (A / (c h^2) + P / (2 h) + n_v)``, c = sqrt(3)/
 triangles and 1 for quads, k = 4 for P2/Q2), the DOFs are twice that, and the peak memory of
 a solve is ``BASE_BYTES + BYTES_PER_DOF_LOG * n log2 n`` (sparse LU fill with SuperLU:
 fitted to P1, P2, Q1 and Q2 unit squares near 1e5 DOFs and to 1e6 DOFs, conservative by
-15-30%; the faster backends need less). A solve above the
+15-30%; the faster backends need less). 3D bodies (the node count from
+:class:`critfric.meshing.solid.SolidFootprint`, three DOFs a node) fill far more: their
+estimate is per backend and element, from the fill of the factor (~ n^1.45) and the 3p x 3p
+Schur complement of the dense eigen path (:func:`memory_estimate`). A solve above the
 memory available (or above ``max_dofs`` when given) is a :class:`CaseError` that gives the
 estimate and the finest mesh size that fits.
 
@@ -17,6 +20,7 @@ output for the whole solve; a second writer is refused at once.
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import os
 from dataclasses import dataclass
@@ -32,6 +36,26 @@ BYTES_PER_DOF_LOG = 250.0
 BASE_BYTES = 150e6
 DENSE_COPIES = 6  # dense stage: S, its Cholesky factor, T, eigenvectors, workspace
 _CELL_AREA = {"triangle": math.sqrt(3) / 2, "quad": 1.0}  # cell area / size^2
+
+#: 3D: peak bytes of a solve with n DOFs and p contact nodes, fitted to the peak RSS of
+#: `critfric solve` on boxes (benchmarks/box3d.py, 31 runs in benchmarks/box3d_memory.csv:
+#: P1/P2 tetrahedra, Q1/Q2 hexahedra, 20 k to 570 k DOFs, both backends): BASE_BYTES_3D +
+#: PER_DOF_3D n (stiffness parts, mesh, vectors) + FILL_3D n^FILL_EXPONENT_3D (the factor:
+#: its nonzeros grow as n^1.39-1.47 on every element and backend) + DENSE_BYTES_3D (3p)^2
+#: where the eigen stage forms the Schur complement onto the contact DOFs (3p <=
+#: DENSE_MAX_ROWS, critfric.solvers.eigen's 2 SCHUR_MAX_CONTACT; ARPACK beyond). Least squares
+#: on log(peak) with the exponent fixed, then each backend's FILL_3D and DENSE_BYTES_3D raised
+#: until no measured peak is above the estimate (x1.06 PARDISO, x1.21 SciPy, whose SuperLU
+#: grows its arrays in steps: 12 bytes per factor entry at 150 k DOFs, 15 at 283 k). The
+#: estimates are then 1.00-1.11 x the peaks on PARDISO (a fit to the runs below 280 k DOFs
+#: gave 1.07-1.12 x the larger ones), 1.00-1.31 x on SciPy.
+FILL_EXPONENT_3D = 1.45
+BASE_BYTES_3D = 185e6
+PER_DOF_3D = {"P1": 850.0, "P2": 2550.0, "Q1": 4150.0, "Q2": 10850.0}
+FILL_3D = {"pardiso": {"P1": 41.0, "P2": 42.5, "Q1": 37.0, "Q2": 23.0},
+           "scipy": {"P1": 133.0, "P2": 130.0, "Q1": 113.0, "Q2": 89.0}}
+DENSE_BYTES_3D = {"pardiso": 30.5, "scipy": 72.5}
+DENSE_MAX_ROWS = 8000
 
 
 @dataclass(frozen=True)
@@ -125,25 +149,49 @@ def available_memory() -> float:
     return avail
 
 
-def memory_estimate(n_dofs: float, n_contact: float = 0.0) -> float:
+def estimated_backend(backend: str | None = None) -> str:
+    """The sparse solver a 3D estimate models: ``backend`` as a case names it; "auto" (or
+    None) is PARDISO wherever its ``pypardiso`` wheel is installed (what
+    :func:`critfric.solvers.backends.resolve_backend` picks; MKL is not loaded here), else
+    SciPy."""
+    if backend in (None, "auto"):
+        return "pardiso" if importlib.util.find_spec("pypardiso") is not None else "scipy"
+    return backend if backend in DENSE_BYTES_3D else "scipy"
+
+
+def memory_estimate(n_dofs: float, n_contact: float = 0.0, *, dim: int = 2,
+                    element: str = "P1", backend: str | None = None) -> float:
     """Peak bytes of a solve with ``n_dofs`` degrees of freedom and ``n_contact`` contact
-    nodes: the sparse factorization, plus the dense stage (the 2p x 2p Schur complement and
-    the p x p pencil with its eigenvectors and LAPACK workspace, about DENSE_COPIES copies)."""
+    nodes. 2D: the sparse factorization, plus the dense stage (the 2p x 2p Schur complement
+    and the p x p pencil with its eigenvectors and LAPACK workspace, about DENSE_COPIES
+    copies). 3D (``dim`` 3): the fitted model of ``element`` on ``backend``
+    (:func:`estimated_backend`) described at FILL_3D."""
     n = max(float(n_dofs), 2.0)
     if not (math.isfinite(n) and math.isfinite(n_contact)):
         return math.inf
+    if dim == 3:
+        b, rows = estimated_backend(backend), 3.0 * n_contact
+        dense = DENSE_BYTES_3D[b] * rows * rows if rows <= DENSE_MAX_ROWS else 0.0
+        with np.errstate(over="ignore"):
+            fill = FILL_3D[b][element] * np.float64(n) ** FILL_EXPONENT_3D
+        return float(BASE_BYTES_3D + PER_DOF_3D[element] * n + fill + dense)
     dense = DENSE_COPIES * 8.0 * (2.0 * n_contact) ** 2
     return BASE_BYTES + BYTES_PER_DOF_LOG * n * math.log2(n) + dense
 
 
-def dofs_that_fit(memory: float) -> float:
-    """The largest DOF count whose :func:`memory_estimate` fits in ``memory`` bytes."""
+def dofs_that_fit(memory: float, *, contact=None, **model) -> float:
+    """The largest DOF count whose :func:`memory_estimate` (keywords ``model``: dim, element,
+    backend; ``contact``: the contact node count as a function of the DOF count, default 0)
+    fits in ``memory`` bytes (the first from below, where the estimate is not monotone)."""
+    def need(n: float) -> float:
+        return memory_estimate(n, contact(n) if contact is not None else 0.0, **model)
+
     lo, hi = 2.0, 2.0
-    while memory_estimate(hi) <= memory and hi < 1e15:
+    while need(hi) <= memory and hi < 1e15:
         lo, hi = hi, hi * 2
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if memory_estimate(mid) <= memory else (lo, mid)
+        lo, hi = (mid, hi) if need(mid) <= memory else (lo, mid)
     return lo
 
 
@@ -158,14 +206,21 @@ def _bytes(b: float) -> str:
 
 
 def check_dofs(n_dofs: float, *, element: str, what: str, source: str | None,
-               key: str | None = "mesh.size", footprint: Footprint | None = None,
-               max_dofs: int | None = None, n_contact: float = 0.0) -> None:
+               key: str | None = "mesh.size", footprint=None, max_dofs: int | None = None,
+               n_contact: float = 0.0, dim: int | None = None,
+               backend: str | None = None) -> None:
     """Refuse ``n_dofs`` above ``max_dofs`` or, without it, above what memory allows.
 
     ``what`` says where the count comes from (e.g. "mesh.size = 1e-05"); with a
-    ``footprint`` the message also gives the finest mesh size that fits.
+    ``footprint`` (:class:`Footprint`, or a 3D body's ``SolidFootprint``) the message also
+    gives the finest mesh size that fits. ``dim``: the body's dimension (default: 3 for a 3D
+    footprint, else 2); ``backend``: the case's sparse solver ("auto" if None), for the 3D
+    model.
     """
-    need = memory_estimate(n_dofs, n_contact)
+    if dim is None:
+        dim = 3 if hasattr(footprint, "volume") else 2
+    model = {"dim": dim, "element": element, "backend": backend}
+    need = memory_estimate(n_dofs, n_contact, **model)
     if max_dofs is not None:
         if n_dofs <= max_dofs:
             return
@@ -174,7 +229,10 @@ def check_dofs(n_dofs: float, *, element: str, what: str, source: str | None,
         avail = available_memory()
         if need <= avail:
             return
-        limit = dofs_that_fit(avail)
+        contact = None
+        if dim == 3 and n_contact > 0 and math.isfinite(n_dofs):  # a face: ~ n^(2/3)
+            contact = lambda n: n_contact * (n / n_dofs) ** (2 / 3)
+        limit = dofs_that_fit(avail, contact=contact, **model)
         why = f"needing about {_bytes(need)} of memory; {_bytes(avail)} is available"
     message = f"{what} gives about {n_dofs:.3g} DOFs ({element}), {why}"
     if footprint is not None:

@@ -262,7 +262,8 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
         check_held(mesh, _facet_nodes(mesh, dirichlet), source=case.source)
     contact = [name for name in case.boundary["contact"] if name in mesh.facets]
     check_dofs(mesh.dim * mesh.n_nodes, element=mesh.element, what="the mesh made",
-               source=case.source, max_dofs=max_dofs,
+               source=case.source, max_dofs=max_dofs, dim=mesh.dim,
+               backend=case.solve["backend"],
                n_contact=len(_facet_nodes(mesh, contact)))  # what is real
     t1 = time.perf_counter()
     layout = _layout(case, mesh)

@@ -12,9 +12,10 @@ Backends (``BACKENDS``; ``"auto"`` takes the first available of ``PREFERENCE``):
   default COLAMD (~16x slower and ~8x larger on these matrices): nested dissection of the mesh
   when the caller gives it (:mod:`critfric.solvers.ordering`, ~3x faster than the
   alternative), else minimum degree on A^T + A. Its Schur complement comes from the same
-  factorization, with the Schur rows ordered last; from SPLIT_MIN_ROWS rows on, from the
-  pieces of a partition factored two at a time in threads (:class:`SplitSchur`), in about half
-  the memory (2.1 against 4.2 GB at 1.3 M rows, measured).
+  factorization, with the Schur rows ordered last; from SPLIT_MIN_ROWS rows (or
+  SPLIT_MIN_SCHUR Schur rows) on, from the pieces of a partition factored two at a time in
+  threads (:class:`SplitSchur`), in about half the memory (2.1 against 4.2 GB at 1.3 M rows,
+  measured) and, with many Schur rows (3D), in less time.
 * ``pardiso``: Intel MKL PARDISO, from the ``pypardiso`` wheel (``pip install
   critfric[fast]``, x86-64), called directly through ctypes (:mod:`.pardiso`): METIS
   ordering, Cholesky-class factorization (mtype 2) and the Schur complement computed during
@@ -39,6 +40,11 @@ from .superlu import trailing_blocks
 
 BACKENDS = ("scipy", "pardiso")
 SPLIT_MIN_ROWS = 400_000  # SciPy's Schur complement by substructuring from here on (memory)
+#: ... or from this many Schur rows on: SuperLU factors the dense trailing block of k rows
+#: itself, slowly (3D P1 box, k = 4311 / 5790 / 9051 at 47 k / 76 k / 144 k DOFs: 21.6 / 68 /
+#: 361 s and 2.5 / 4.5 / 11.1 GB in one factorization, 17.1 / 52 / 283 s and 2.2 / 3.8 /
+#: 8.6 GB substructured; at k = 2367, 20 k DOFs, 3.9 against 7.0 s)
+SPLIT_MIN_SCHUR = 4000
 SPLIT_WORKERS = 2  # pieces factored at once (threads; at most the CPUs this process may use)
 REFINE_STEPS = 3  # ScipySchur.extend: refinement steps on the contact rows (1-2 are used)
 PREFERENCE = ("pardiso", "scipy")  # "auto": fastest first
@@ -279,14 +285,15 @@ def schur(A: sp.spmatrix, index: np.ndarray, *, backend: str = "scipy", order=No
     """Dense Schur complement of a symmetric positive definite A onto ``index`` (object with
     ``S``, ``extend(x_c)`` and ``backend``); ``order`` as for :func:`factorize`. ``pieces``: a
     partition of A's rows as :class:`SplitSchur` takes it, or a function that makes one; SciPy
-    substructures on it from SPLIT_MIN_ROWS rows on, SPLIT_WORKERS pieces at a time.
+    substructures on it from SPLIT_MIN_ROWS rows or SPLIT_MIN_SCHUR Schur rows on,
+    SPLIT_WORKERS pieces at a time.
     ``plan``: a :class:`PardisoPlan` of A's pattern, used if it matches."""
     index = np.asarray(index, dtype=np.int64)
     backend = resolve_backend(backend)
     if backend == "pardiso" and len(index) < A.shape[0]:
         factor = plan.schur(A, index) if plan is not None else None
         return factor or PardisoFactor(A, symmetric=True, schur_index=index)
-    if pieces is not None and A.shape[0] >= SPLIT_MIN_ROWS:
+    if pieces is not None and (A.shape[0] >= SPLIT_MIN_ROWS or len(index) >= SPLIT_MIN_SCHUR):
         try:
             return SplitSchur(A, index, pieces() if callable(pieces) else pieces, order=order,
                               workers=min(SPLIT_WORKERS, usable_cpus()))

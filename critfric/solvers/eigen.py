@@ -58,12 +58,11 @@ from .eigenproblem import (
     Spectrum,
     classify,
     complete_pairs,
-    fill_order_for,
     finish,
     ratio,
     real_vector,
 )
-from .ordering import pieces
+from .ordering import fill_order, pieces
 
 __all__ = ["INFINITE_TOL", "LAWS", "RESIDUAL_TOL", "ContactState", "Mode", "Spectrum",
            "plan_dense", "schur_spectrum", "solve", "solve_arpack", "solve_dense"]
@@ -91,8 +90,8 @@ def solve_dense(K, system: ContactSystem, state: ContactState, *, count: int,
                           f"({p} contact nodes > {2 * SCHUR_MAX_CONTACT // system.dim}); use "
                           "method = 'arpack'")
     sc = schur(K, prob.contact_dofs, backend=backend,
-               order=fill_order_for(system, np.arange(K.shape[0]), backend),
-               pieces=(lambda: pieces(system)) if system.dim == 2 else None, plan=plan)
+               order=fill_order(system) if backend == "scipy" else None,
+               pieces=lambda: pieces(system), plan=plan)
     spec = schur_spectrum(prob, sc.S, sc.extend, count=count, real_tol=real_tol)
     spec.backend = sc.backend
     return spec

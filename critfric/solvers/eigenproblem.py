@@ -266,9 +266,8 @@ class Reduced(Problem):
 
 
 def fill_order_for(system: ContactSystem, dofs: np.ndarray, backend: str):
-    """The fill-reducing order SciPy's SuperLU is given (PARDISO orders by itself; 3D: None,
-    SuperLU's minimum degree on the matrix)."""
-    return fill_order(system, dofs) if backend == "scipy" and system.dim == 2 else None
+    """The fill-reducing order SciPy's SuperLU is given (PARDISO orders by itself)."""
+    return fill_order(system, dofs) if backend == "scipy" else None
 
 
 def complete_pairs(beta: np.ndarray, vecs: np.ndarray):
