@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DEMO   := demo
 
-.PHONY: all venv demo test test-nofast validate fuzz shell clean
+.PHONY: all venv demo test test-nofast validate docs fuzz shell clean
 
 all: test
 
@@ -50,9 +50,20 @@ test-nofast: $(NOFAST)/.installed
 
 # the long validation study (minutes; not part of `make test`): h -> 0 limits of graded sweeps
 # (unit square, inclined body, mixed contact states; P1, P2, Q1, Q2; five sizes) against
-# references and closed forms, the table of README "Validation"; exit 1 if an error bar misses
+# references and closed forms, written into docs/validation.md; exit 1 if an error bar misses
 validate: $(STAMP)
-	$(BIN)/python scripts/validate.py $(if $(JOBS),--jobs $(JOBS))
+	$(BIN)/python scripts/validate.py --docs docs/validation.md $(if $(JOBS),--jobs $(JOBS))
+
+# the manual (Sphinx: MyST pages, the gallery's scripts run, autodoc, the references generated
+# from the schema and the CLI) into docs/_build/html, offline; any warning fails the build
+DOCS_STAMP := $(VENV)/.docs-installed
+$(DOCS_STAMP): pyproject.toml $(STAMP)
+	$(BIN)/python -m pip install -q --disable-pip-version-check -e '.[docs]'
+	@touch $@
+
+docs: $(DOCS_STAMP)
+	$(BIN)/python -m sphinx -W --keep-going -q -b html -d docs/_build/doctrees docs docs/_build/html
+	@echo "the manual: docs/_build/html/index.html" >&2
 
 # a shell with the virtual environment active (critfric on PATH); `exit` leaves it
 shell: $(STAMP)
@@ -64,4 +75,5 @@ fuzz: $(STAMP)
 	CRITFRIC_FUZZ_SCALE=$(or $(SCALE),30) $(BIN)/python -m pytest -q tests/cli/test_fuzz.py tests/cli/test_hostile.py -k 'fuzz or token or msh_headers'
 
 clean:
-	rm -rf $(VENV) $(NOFAST) $(DEMO) .pytest_cache .hypothesis
+	rm -rf $(VENV) $(NOFAST) $(DEMO) .pytest_cache .hypothesis docs/_build docs/_generated \
+	  docs/auto_examples docs/sg_execution_times.rst

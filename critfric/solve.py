@@ -119,7 +119,7 @@ class Result:
 
     @property
     def critical(self) -> float:
-        """The critical friction coefficient: the lowest positive eigenvalue (NaN if none)."""
+        """The critical friction coefficient, the lowest positive eigenvalue (NaN if none)."""
         return float(self.positive[0]) if len(self.positive) else float("nan")
 
     def summary(self) -> dict[str, Any]:
@@ -245,11 +245,16 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
             _plan: bool = False) -> Prepared:
     """Mesh, assemble and classify the boundary of a case (independent of nu).
 
-    max_dofs : refuse a mesh estimated above this many DOFs (default: what memory allows).
-    trust_geo: mesh a .geo script even if it can run programs or read or write files.
-    _plan    : start the eigen stage's factorization analysis from the stiffness pattern as
-               soon as it is known (:func:`critfric.solvers.eigen.plan_dense`), for the one
-               solve of ``case`` that follows.
+    Parameters
+    ----------
+    max_dofs
+        Refuse a mesh estimated above this many DOFs (default: what memory allows).
+    trust_geo
+        Mesh a .geo script even if it can run programs or read or write files.
+    _plan
+        Start the eigen stage's factorization analysis from the stiffness pattern as soon as
+        it is known (:func:`critfric.solvers.eigen.plan_dense`), for the one solve of
+        ``case`` that follows.
     """
     t0 = time.perf_counter()
     try:

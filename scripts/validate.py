@@ -10,7 +10,7 @@ References (nu = 0.3):
 - four triangles, one triangle: the closed forms of the paper (no h: solved as given);
 - unit square: 1.94471145, inclined body: 0.58501693 (+- 3e-8 both): P2 and Q2 on meshes
   graded radially at every singular point (local size h (d / R)^(3/4) at distance d < R from
-  it, down to 1e-5 of the body's extent; not critfric's grading, see README "Validation"),
+  it, down to 1e-5 of the body's extent; not critfric's grading, see docs/validation.md),
   converging at order ~4: unit square P2 1.9447114132, 1.9447114455, 1.9447114474 at
   h = 0.025, 0.0125, 0.00625 and Q2 1.9447114394, 1.9447114425 at 0.025, 0.0125; inclined
   body P2 0.5850169383, 0.5850169295 and Q2 0.5850169356, 0.5850169292 at 0.025, 0.0125
@@ -19,13 +19,20 @@ References (nu = 0.3):
 - mixed states (a 2 x 1 block stuck on [0, 0.5], slip + on [0.5, 1.3], slip - on [1.3, 2] of
   its base): no reference; its families must agree between elements.
 
-Usage: python scripts/validate.py [--jobs N] [--out DIR] [--markdown]
+Usage: python scripts/validate.py [--jobs N] [--out DIR] [--markdown] [--docs FILE]
+
+``--docs docs/validation.md`` (what ``make validate`` passes) writes the Markdown table into
+that page, between its ``<!-- make validate: begin -->`` and ``<!-- make validate: end -->``
+lines, with the date and the machine it ran on: the manual shows the last study run.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import math
+import os
+import platform
 import sys
 import tempfile
 import time
@@ -107,8 +114,9 @@ def table(rows: list[dict], exact: list, markdown: bool) -> tuple[str, int]:
         lines.append([name, "P1", "positive", f"{value:.9f}", "(no h)", "-", f"{ref:.9f}",
                       f"{abs(value - ref):.1e}", "exact" if held else "MISSED"])
     if markdown:
-        text = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-        text += ["| " + " | ".join(line) + " |" for line in lines]
+        cell = lambda x: x.replace("|", "\\|")  # noqa: E731 -- a | inside a cell is text
+        text = ["| " + " | ".join(map(cell, head)) + " |", "|" + "---|" * len(head)]
+        text += ["| " + " | ".join(map(cell, line)) + " |" for line in lines]
     else:
         widths = [max(len(x) for x in col) for col in zip(head, *lines)]
         text = ["  ".join(x.ljust(w) for x, w in zip(head, widths))]
@@ -116,18 +124,50 @@ def table(rows: list[dict], exact: list, markdown: bool) -> tuple[str, int]:
     return "\n".join(text), misses
 
 
+BEGIN, END = "<!-- make validate: begin -->", "<!-- make validate: end -->"
+
+
+def check_docs(page: Path) -> str:
+    """The text of ``page``, which must hold the two markers in order (checked before the
+    study, so that a wrong page fails at once)."""
+    text = page.read_text(encoding="utf-8")
+    if text.count(BEGIN) != 1 or text.count(END) != 1 or text.index(BEGIN) > text.index(END):
+        raise SystemExit(f"{page}: needs one {BEGIN!r} line and one {END!r} line after it")
+    return text
+
+
+def write_docs(page: Path, markdown: str, misses: int, seconds: float) -> None:
+    """Put ``markdown`` (the table) between the markers of ``page``, with how it was made."""
+    head, rest = check_docs(page).split(BEGIN)
+    tail = rest.split(END)[1]
+    when = datetime.date.today().isoformat()
+    how = (f"`make validate`, {when}, critfric {critfric.__version__}, {os.cpu_count()} cores "
+           f"({platform.machine()}), {seconds:.0f} s; {misses} limit(s) outside their error "
+           "estimate.")
+    page.write_text(f"{head}{BEGIN}\n{how}\n\n{markdown}\n{END}{tail}", encoding="utf-8")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--jobs", type=int, default=None)
     parser.add_argument("--out", type=Path, default=None, help="keep the sweep files here")
     parser.add_argument("--markdown", action="store_true", help="a Markdown table")
+    parser.add_argument("--docs", type=Path, default=None,
+                        help="also write the Markdown table into this page, between its markers")
     args = parser.parse_args(argv)
+    if args.docs is not None:
+        check_docs(args.docs)
+    t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
         out.mkdir(parents=True, exist_ok=True)
         rows = study(out, args.jobs)
-    text, misses = table(rows, closed_forms(), args.markdown)
+    exact = closed_forms()
+    text, misses = table(rows, exact, args.markdown)
     print(text)
+    if args.docs is not None:
+        write_docs(args.docs, table(rows, exact, True)[0], misses, time.perf_counter() - t0)
+        print(f"wrote the table into {args.docs}", file=sys.stderr)
     print(f"\n{misses} limit(s) outside their error estimate", file=sys.stderr)
     return 1 if misses else 0
 

@@ -1,9 +1,10 @@
 """Case files: the TOML schema, strict validation, overrides and the shipped cases.
 
 A case is a TOML file with the sections ``[geometry]``, ``[boundary]``, ``[material]``,
-``[mesh]``, ``[solve]``, ``[output]`` and those of single commands (see ``SCHEMA`` and the
-README). Validation is strict: an unknown key, a wrong type or an out-of-range value is a
-:class:`CaseError` that names the file, the dotted key, the value and what is allowed.
+``[mesh]``, ``[solve]``, ``[output]`` and those of single commands (see ``SCHEMA``; the
+manual's case-file reference is generated from it). Validation is strict: an unknown key, a
+wrong type or an out-of-range value is a :class:`CaseError` that names the file, the dotted
+key, the value and what is allowed.
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ BACKENDS = ("auto", "scipy", "pardiso")  # linear solvers: critfric.linsolve.BAC
 POSITIVE = c.number(0.0, lo_open=True)
 
 #: ``[mesh] grading`` of a sweep that extrapolates (3+ sizes) when the case sets none: the
-#: singular points' share of the h -> 0 error shrinks with g (README "Validation": from 0.1
+#: singular points' share of the h -> 0 error shrinks with g (docs/validation.md: from 0.1
 #: to 0.05, 18% more DOFs, inclined-body Q1 limits 2.1e-6 -> 9.0e-7 off the reference)
 SWEEP_GRADING = 0.05
 

@@ -6,7 +6,7 @@ point data ``<mode>_phi`` (Phi, in 2D padded with a zero z component: ParaView t
 X n + Y t, 3D: X n + Y s, at the contact nodes, zero elsewhere) and ``<mode>_von_mises``
 (nodal average), and cell data ``<mode>_stress`` (the tensor at the cell centroid, 9
 components: ParaView's tensor layout; plane strain in 2D) and ``<mode>_von_mises``. Phi is
-scaled to max |Phi| = 1, and the stresses and the contact forces are those of that Phi (units
+scaled to ``max |Phi| = 1``, and the stresses and the contact forces are those of that Phi (units
 of E per unit length). 3D cells are written in VTK's node order (tetra10, hexahedron27 differ
 from gmsh's). The alphas are in the solve file (``critfric table``) and, in a VTU file, in its
 field data (with r of each in 3D).

@@ -101,13 +101,20 @@ class Event:
 class PathResult:
     """Every curve found along ``parameter`` over ``range``, with its events.
 
-    friction : the fixed friction of a load path (None for a friction path).
-    samples  : the parameter values at which each curve holds a point (and, on small problems,
-               where every solution was enumerated).
-    isolated : solutions the enumeration found at a sample value on no curve that could be
-               followed (said, never dropped), as (value, PathPoint).
-    s        : (p,) arc length of each contact node along Gamma_C.
-    node     : the contact node whose tangential displacement the diagram shows.
+    Attributes
+    ----------
+    friction
+        The fixed friction of a load path (None for a friction path).
+    samples
+        The parameter values at which each curve holds a point (and, on small problems,
+        where every solution was enumerated).
+    isolated
+        Solutions the enumeration found at a sample value on no curve that could be
+        followed (said, never dropped), as (value, PathPoint).
+    s
+        (p,) arc length of each contact node along Gamma_C.
+    node
+        The contact node whose tangential displacement the diagram shows.
     """
 
     parameter: str

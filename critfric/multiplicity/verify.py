@@ -188,11 +188,17 @@ def branch(case: Case | str | Path, *, friction: float | None = None, mode=None,
            ) -> Branch:
     """Walk u + delta Phi from the explicit solution of section 5 and check every point.
 
-    friction : friction coefficient (default: the critical one, |alpha| of ``mode``).
-    mode     : eigenfunction (:class:`critfric.eigen.Mode`) of (3.2) for all nodes slipping
-               (default: that of the critical coefficient); gamma its slip sign.
-    deltas   : the walk (default: WALK * delta0).
-    factor   : the factored K (:class:`critfric.coulomb.Condensed`) of this case, to reuse.
+    Parameters
+    ----------
+    friction
+        The friction coefficient (default: the critical one, ``|alpha|`` of ``mode``).
+    mode
+        Eigenfunction (:class:`critfric.solvers.eigenproblem.Mode`) of (3.2) for all nodes
+        slipping (default: that of the critical coefficient); ``gamma`` its slip sign.
+    deltas
+        The walk (default: ``WALK * delta0``).
+    factor
+        The factored K (:class:`critfric.solvers.coulomb.Condensed`) of this case, to reuse.
     """
 
     case = case if isinstance(case, Case) else load_case(case)

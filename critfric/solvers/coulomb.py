@@ -134,10 +134,15 @@ def solve(problem: StaticProblem, friction: float | None = None, *, condensed=No
           maxiter: int = MAXITER) -> CoulombSolution:
     """Solve (2.8)-(2.11) by semi-smooth Newton on the Alart-Curnier functions.
 
-    friction  : coefficient (default: the problem's ``[load] friction``).
-    condensed : (Condensed, u0) from :func:`condense`, to reuse one factorization.
-    start     : contact displacements (U_n, U_t) (2p,) to start from (default: all stuck,
-                U_n = 0, U_t = U^r).
+    Parameters
+    ----------
+    friction
+        The friction coefficient (default: the problem's ``[load] friction``).
+    condensed
+        (Condensed, u0) from :func:`condense`, to reuse one factorization.
+    start
+        Contact displacements (U_n, U_t) (2p,) to start from (default: all stuck, U_n = 0,
+        U_t = U^r).
     """
     friction = problem.friction if friction is None else friction
     if friction is None or not friction >= 0:

@@ -85,7 +85,7 @@ class StabilityResult:
         return np.abs((1j * np.sqrt(self.kappa.astype(complex))).real)
 
     def frequency(self) -> np.ndarray:
-        """Angular frequency |Im s| of each branch, (n_f, modes)."""
+        """Angular frequency ``|Im s|`` of each branch, (n_f, modes)."""
         return np.abs((1j * np.sqrt(self.kappa.astype(complex))).imag)
 
     def summary(self) -> dict[str, Any]:

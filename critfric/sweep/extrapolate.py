@@ -9,7 +9,7 @@ nearer the reference than unweighted, no estimate less safe) (p scanned over
 with exactly three sizes the fit is Richardson's extrapolation). The mesh parameter h is the
 target size of the sweep (``--size``), exact and proportional across unstructured meshes.
 
-Error estimate (what ``make validate`` checks, see README "Validation"):
+Error estimate (what ``make validate`` checks, see docs/validation.md):
 
     error = max(F |f0 - f_finest|, |f0 - f0'|) + 3 sigma
 
@@ -25,7 +25,7 @@ slip base, P1 negative family 1.812848, 1.812808, 1.812836, 1.812880 where P2 an
 to 1.81295); values that all move one way, the last step the largest, drift: not converged.
 Every error is at least ``ERROR_FLOOR`` (1e-8) of the limit. Measured on graded unit-square
 and inclined-body families (P1, P2, Q1, Q2, nested meshes) against references from radically
-graded P2 and Q2 (see README "Validation"): g = 0.1 and 0.25, every window of 3 to 5 of the
+graded P2 and Q2 (see docs/validation.md): g = 0.1 and 0.25, every window of 3 to 5 of the
 sizes 0.2 ... 0.0125, 140 limits (4 more windows of coarse or pre-asymptotic values flagged),
 |reference - f0| / error at most 0.91; g = 0.05 (the sweep default), every halving window of
 3 to 5 of the sizes 0.2 ... 0.00625, 105 limits (3 windows flagged), at most 0.73 (0.96

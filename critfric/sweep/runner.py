@@ -262,14 +262,21 @@ def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = 
     (and, over two slip directions or more, the minimum over directions of each (nu, size,
     element), located after the points: :mod:`.directions`).
 
-    jobs      : local worker processes (default: all cores); 1 runs in this process.
-    scheduler : address of a Dask distributed scheduler, instead of local processes.
-    force     : discard an existing ``output`` written for another case or grid.
-    reuse     : reuse meshes and assemblies across nu and angles (off only to measure it).
-    on_point  : called as on_point(row, done, total) after each point (or minimum) is
-                written, and once with row None before the first (done: those already in
-                the file).
-    max_dofs, trust_geo : the guards of :func:`critfric.solve.prepare`, for every point.
+    Parameters
+    ----------
+    jobs
+        Local worker processes (default: all cores); 1 runs in this process.
+    scheduler
+        Address of a Dask distributed scheduler, instead of local processes.
+    force
+        Discard an existing ``output`` written for another case or grid.
+    reuse
+        Reuse meshes and assemblies across nu and angles (off only to measure it).
+    on_point
+        Called as ``on_point(row, done, total)`` after each point (or minimum) is written,
+        and once with row None before the first (done: those already in the file).
+    max_dofs, trust_geo
+        The guards of :func:`critfric.solve.prepare`, for every point.
     """
 
     t0 = time.perf_counter()
