@@ -45,7 +45,7 @@ exclude_patterns = [
 templates_path: list[str] = []
 
 # --------------------------------------------------------------------------- MyST
-myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence"]
+myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist"]
 myst_heading_anchors = 3  # [text](page.md#a-heading) links
 myst_dmath_double_inline = True
 
