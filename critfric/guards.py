@@ -42,8 +42,9 @@ _CELL_AREA = {"triangle": math.sqrt(3) / 2, "quad": 1.0}  # cell area / size^2
 #: P1/P2 tetrahedra, Q1/Q2 hexahedra, 20 k to 570 k DOFs, both backends): BASE_BYTES_3D +
 #: PER_DOF_3D n (stiffness parts, mesh, vectors) + FILL_3D n^FILL_EXPONENT_3D (the factor:
 #: its nonzeros grow as n^1.39-1.47 on every element and backend) + DENSE_BYTES_3D (3p)^2
-#: where the eigen stage forms the Schur complement onto the contact DOFs (3p <=
-#: DENSE_MAX_ROWS, critfric.solvers.eigen's 2 SCHUR_MAX_CONTACT; ARPACK beyond). Least squares
+#: where the eigen stage may form the Schur complement onto the contact DOFs (3p <=
+#: DENSE_MAX_ROWS, critfric.solvers.eigen's 2 SCHUR_MAX_CONTACT, what method = "dense" allows;
+#: "auto" takes ARPACK from eigen.AUTO_DENSE_ROWS_3D rows on: an upper bound there). Least squares
 #: on log(peak) with the exponent fixed, then each backend's FILL_3D and DENSE_BYTES_3D raised
 #: until no measured peak is above the estimate (x1.06 PARDISO, x1.21 SciPy, whose SuperLU
 #: grows its arrays in steps: 12 bytes per factor entry at 150 k DOFs, 15 at 283 k). The

@@ -38,7 +38,13 @@ def _gmsh_session():
     """A silent gmsh session with a fresh model; always finalized (or the model removed when
     gmsh was already initialized by the caller)."""
     import gmsh  # imported lazily: only meshing needs the gmsh library
+    from threadpoolctl import ThreadpoolController
 
+    # gmsh sets the OpenMP thread count of the process to General.NumThreads (HXT does, on
+    # MKL's OpenMP runtime too): put every runtime's count back after the session, or the
+    # sparse factorization that follows runs on one thread
+    openmp = ThreadpoolController().select(user_api="openmp")
+    counts = [lib.num_threads for lib in openmp.lib_controllers]
     owner = not gmsh.isInitialized()
     if owner:
         try:  # interruptible=False: leave Python's SIGINT handler alone
@@ -57,6 +63,8 @@ def _gmsh_session():
             gmsh.finalize()
         else:
             gmsh.model.remove()
+        for lib, count in zip(openmp.lib_controllers, counts):
+            lib.set_num_threads(count)
 
 
 def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = False,

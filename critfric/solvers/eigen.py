@@ -34,7 +34,9 @@ Three solvers, which agree to round-off:
 ``backend`` ("auto", "scipy", "pardiso"; :mod:`critfric.solvers.backends`) picks the sparse
 solver. Method "auto": dense whenever the Schur complement has at most 2 SCHUR_MAX_CONTACT
 rows (2D: p <= SCHUR_MAX_CONTACT) and no shift, on every install, so that both give the same
-complete spectrum; ARPACK beyond that.
+complete spectrum; ARPACK beyond that. In 3D the Schur complement onto 3p rows costs far more
+than ARPACK's solves (boxes, PARDISO: 0.57 / 2.5 / 6.5 / 15.9 s dense against 0.17 / 1.1 / 1.4
+/ 4.7 s ARPACK at p = 529 / 1145 / 1437 / 1969): dense only up to AUTO_DENSE_ROWS_3D rows.
 """
 
 from __future__ import annotations
@@ -70,6 +72,7 @@ __all__ = ["INFINITE_TOL", "LAWS", "RESIDUAL_TOL", "ContactState", "Mode", "Spec
 EXPLICIT_T_MAX = 3000  # widest ARPACK fallback: form T explicitly up to this p0
 WIDEN = 4  # ARPACK's second try asks for WIDEN times more eigenvalues
 SCHUR_MAX_CONTACT = 4000  # dense Schur path: at most this many contact nodes (2D)
+AUTO_DENSE_ROWS_3D = 1800  # 3D, method "auto": dense up to this many Schur rows (under ~1 s)
 START_SEED = 20030328  # fixed ARPACK start vector: identical runs give identical results
 
 
@@ -236,18 +239,18 @@ def plan_dense(indptr: np.ndarray, indices: np.ndarray, contact_dofs: np.ndarray
     except SolverError:  # solve() reports it
         return None
     rows = len(contact_dofs)  # the slipping nodes are not known yet: as if all slipped
-    if (backend != "pardiso" or _method(method, rows, shift, rows // dim) != "dense"
+    if (backend != "pardiso" or _method(method, rows, shift, rows // dim, dim) != "dense"
             or rows > 2 * SCHUR_MAX_CONTACT or rows >= len(indptr) - 1):
         return None
     return PardisoPlan(indptr, indices, contact_dofs)
 
 
-def _method(method: str, rows: int, shift: float, n_slip: int) -> str:
+def _method(method: str, rows: int, shift: float, n_slip: int, dim: int) -> str:
     """The method "auto" stands for: every eigenvalue whenever the Schur complement (``rows``
-    contact DOFs) fits."""
+    contact DOFs) fits (3D: is cheap, AUTO_DENSE_ROWS_3D)."""
     if method != "auto":
         return method
-    dense = rows <= 2 * SCHUR_MAX_CONTACT and shift == 0.0
+    dense = rows <= (2 * SCHUR_MAX_CONTACT if dim == 2 else AUTO_DENSE_ROWS_3D) and shift == 0.0
     return "dense" if dense or n_slip < 4 else "arpack"
 
 
@@ -259,7 +262,7 @@ def solve(K, system: ContactSystem, state: ContactState | None = None, *, method
     ``law``: the 3D slip law of the e DOF, "rate" or "frozen" (no effect in 2D)."""
     state = state or ContactState.all_slipping(system.n_contact, gamma)
     backend = resolve_backend(backend)
-    method = _method(method, _schur_rows(system), shift, state.n_slip)
+    method = _method(method, _schur_rows(system), shift, state.n_slip, system.dim)
     if method == "dense":
         return solve_dense(K, system, state, count=count, real_tol=real_tol, backend=backend,
                            plan=plan, law=law)

@@ -100,7 +100,8 @@ element = "{element}"
 
 
 def test_arpack_non_convergence_falls_back_and_says_so(tmp_path):
-    over = {"mesh.size": 0.05, "solve.method": "arpack", "solve.maxiter": 1, "solve.count": 3}
+    over = {"mesh.size": 0.05, "solve.method": "arpack", "solve.maxiter": 1, "solve.count": 3,
+            "solve.tol": 0.0}  # machine precision: not reached in one iteration
     capped = solve_case("unit-square", overrides=over)
     assert any("did not converge" in n for n in capped.notes)
     assert capped.solver == "arpack+explicit"
