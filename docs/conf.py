@@ -45,9 +45,42 @@ exclude_patterns = [
 templates_path: list[str] = []
 
 # --------------------------------------------------------------------------- MyST
-myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist"]
+myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist", "substitution"]
 myst_heading_anchors = 3  # [text](page.md#a-heading) links
 myst_dmath_double_inline = True
+
+
+def _constants() -> dict[str, str]:
+    """The code's constants that the pages quote, as {{ name }} substitutions: a page says
+    what the code does today, not what it did when the page was written."""
+    from critfric.case.schema import SWEEP_GRADING
+    from critfric.meshing.mesh import NEST_FRACTION
+    from critfric.solvers import backends, eigen
+    from critfric.sweep import extrapolate as x
+
+    n = lambda v: f"{v:,}".replace(",", " ") if v >= 10_000 else str(v)  # noqa: E731
+    return {
+        "schur_max_contact": n(eigen.SCHUR_MAX_CONTACT),
+        "schur_max_rows": n(2 * eigen.SCHUR_MAX_CONTACT),
+        "auto_dense_rows_3d": n(eigen.AUTO_DENSE_ROWS_3D),
+        "auto_dense_contact_3d": n(eigen.AUTO_DENSE_ROWS_3D // 3),
+        "split_min_rows": n(backends.SPLIT_MIN_ROWS),
+        "split_min_schur": n(backends.SPLIT_MIN_SCHUR),
+        "infinite_tol": f"{eigen.INFINITE_TOL:g}",
+        "residual_tol": f"{eigen.RESIDUAL_TOL:g}",
+        "fit_sizes": str(x.FIT_SIZES),
+        "min_order": f"{x.MIN_ORDER:g}",
+        "safety": f"{x.SAFETY:g}",
+        "safety_few": f"{x.SAFETY_FEW:g}",
+        "max_relative_error": f"{100 * x.MAX_RELATIVE_ERROR:g}%",
+        "erratic": f"{100 * x.ERRATIC:g}%",
+        "error_floor": f"{x.ERROR_FLOOR:g}",
+        "sweep_grading": f"{SWEEP_GRADING:g}",
+        "nest_fraction": f"1/{round(1 / NEST_FRACTION)}",
+    }
+
+
+myst_substitutions = _constants()
 
 # --------------------------------------------------------------------------- autodoc
 autodoc_member_order = "bysource"
