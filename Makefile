@@ -1,5 +1,6 @@
-# critfric: `make demo` solves the shipped paper cases, `make test` runs the test suite.
-# Both create the virtual environment (.venv) and the system libraries gmsh needs.
+# critfric: `make demo` solves the shipped paper cases, `make test` runs the test suite, `make docs`
+# builds the manual (docs/_build/html).
+# Each creates the virtual environment (.venv) and the system libraries gmsh needs.
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
