@@ -32,16 +32,16 @@ SCHEDULER = "tcp://scheduler-host:8786"  # the pages' Dask address: a local clus
 
 #: page -> {text as written: what runs instead}, for lines of fine meshes or long ranges
 QUICKER = {
-    "paper-figures.md": {
+    "01-paper-figures.md": {
         "--nu 0:0.5:26": "--nu 0:0.5:4",
         "--nu 0:0.5:21": "--nu 0:0.5:3 --size 0.1",
         "--size 0.1,0.05,0.025,0.0125 --element P1,P2,Q1,Q2": "--size 0.2,0.1,0.05 --element P1,Q2",
         "inclined-body --plot": "inclined-body --size 0.1 --plot",
     },
-    "convergence.md": {"--size 0.1,0.05,0.025,0.0125": "--size 0.2,0.1,0.05",
+    "03-convergence.md": {"--size 0.1,0.05,0.025,0.0125": "--size 0.2,0.1,0.05",
                        '"0.1,0.05,0.025,0.0125"': '"0.2,0.1,0.05"'},
-    "contact-states.md": {"--size 0.1,0.05,0.025,0.0125": "--size 0.2,0.1,0.05"},
-    "3d.md": {
+    "05-contact-states.md": {"--size 0.1,0.05,0.025,0.0125": "--size 0.2,0.1,0.05"},
+    "08-3d.md": {
         "sweep box --slip-angle 0:180:13 --plot": "sweep box --slip-angle 0:180:4 --size 0.3 "
                                                  "--element P1 --plot",
         "sweep box --size 0.2,0.1,0.05 --element P2": "sweep box --size 0.4,0.3,0.2 --element P1",
@@ -49,16 +49,16 @@ QUICKER = {
         "solve box --slip-angle 45": "solve box --size 0.3 --element P1 --slip-angle 45",
         '"mesh.size": 0.1': '"mesh.size": 0.3',
     },
-    "flutter.md": {"--size 0.05": "--size 0.125", '"mesh.size": 0.05': '"mesh.size": 0.125',
+    "09-flutter.md": {"--size 0.05": "--size 0.125", '"mesh.size": 0.05': '"mesh.size": 0.125',
                    "--size 0.1,0.05,0.025 --element Q1": "--size 0.25 --element Q1"},
-    "sweeps.md": {"--nu 0:0.5:21": "--nu 0:0.5:5"},
-    "dask.md": {"--nu 0:0.5:51": "--nu 0:0.5:5"},
+    "02-sweeps.md": {"--nu 0:0.5:21": "--nu 0:0.5:5"},
+    "10-dask.md": {"--nu 0:0.5:51": "--nu 0:0.5:5"},
 }
 #: page -> {line: exit code}, for the lines that show a refusal or a failure
 EXIT = {
-    "geometries.md": {"critfric solve risky.toml": 2,
+    "04-geometries.md": {"critfric solve risky.toml": 2,
                       "critfric solve unit-square --size 0.002 --max-dofs 100000": 2},
-    "batch.md": {"critfric solve unit-square --nu 0.5": 2,
+    "12-batch.md": {"critfric solve unit-square --nu 0.5": 2,
                  "critfric solve missing.toml": 2},
 }
 
@@ -163,7 +163,7 @@ def _workdir(tmp_path: Path) -> Path:
     return tmp_path
 
 
-SLOW_PAGES = {"paper-figures.md", "getting-started.md", "flutter.md", "dask.md"}  # 3 s or more
+SLOW_PAGES = {"01-paper-figures.md", "getting-started.md", "09-flutter.md", "10-dask.md"}  # 3 s or more
 
 
 @pytest.mark.parametrize("page", [pytest.param(p, id=p.stem, marks=[pytest.mark.slow]
