@@ -103,7 +103,7 @@ sphinx_gallery_conf = {
     "backreferences_dir": None,
     "remove_config_comments": True,
     "reset_modules": ("matplotlib",),
-    "image_scrapers": ("matplotlib",),
+    "image_scrapers": ("gallery_scraper.tight",),  # whole titles and labels
     "show_memory": False,
     "default_thumb_file": str(HERE / "box_directions.png"),
 }

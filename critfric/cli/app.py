@@ -120,7 +120,8 @@ def solve(
         typer.echo(f"positive  {fmt_values(result.positive)}")
         typer.echo(f"negative  {fmt_values(result.negative)}")
         typer.echo(f"complex   {result.complex_count}")
-        typer.echo(f"critical friction coefficient: {result.critical:.10g}")
+        typer.echo("critical friction coefficient: " + (
+            f"{result.critical:.10g}" if len(result.positive) else "none (no positive real one)"))
 
 
 def _friction_range(text: str | None) -> list[float] | None:
