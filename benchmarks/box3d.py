@@ -1,7 +1,7 @@
 """3D box: `critfric solve` against one bare factorization of its K, and the peak memory that
 calibrates the 3D resource guard (run by hand, not in CI).
 
-    python benchmarks/box3d.py                                  # P1 ~300 k DOFs, every backend
+    python benchmarks/box3d.py                                  # P1 ~300 k DOFs, both backends
     python benchmarks/box3d.py --runs P1:0.016:pardiso,P1:0.025:scipy
     python benchmarks/box3d.py --runs P1:0.016:pardiso --csv benchmarks/box3d_memory.csv
 
@@ -14,40 +14,30 @@ one factorization of the same K (all free DOFs, nu = 0.3) with the same backend:
 order's computation included). ratio = solve wall / factorization. Each child is capped at
 MEM_LIMIT_GB of address space.
 
-Measured (P1 box, nu = 0.3; 2 cores, 23 GB, MKL 2026.2.0, SciPy 1.17; a shared machine:
-repeat runs vary by about +/-20%). "before": this tree with ordering, backends, pardiso,
-guards and eigen as before 3D orders (other modules as now), run side by side with "after".
-"+ 3D ARPACK order": after, with ``eigenproblem.fill_order_for`` also giving the 3D order
-(one line, outside this benchmark's change; measured on a copy of the tree).
+Measured (P1 box, nu = 0.3; 2 cores, 23 GB, MKL 2026.2.0, SciPy 1.17; a machine shared with
+other jobs: repeat runs vary by about +/-20%; solves = ARPACK's operator applications, each
+one solve with the factor of K_c):
 
-Fast install (PARDISO). Target: a 300 k-DOF P1 box in at most 1.5 factorizations.
+    python benchmarks/box3d.py --runs P1:0.0153:pardiso,P1:0.012:pardiso
+    python benchmarks/box3d.py --runs P1:0.02:scipy,P1:0.02:pardiso
 
-| DOFs | p | tree (method) | mesh | assembly | contact | eigen | rest | wall | peak GB | factor s (peak GB) | ratio |
-|---|---|---|---|---|---|---|---|---|---|---|---|
-| 283185 | 4754 | before (arpack) | 22.5 | 1.5 | 0.8 | 44.2 | 0.7 | 69.6 | 3.54 | 22.9 (4.10) | 3.03 |
-| 283185 | 4754 | after (arpack) | 18.8 | 1.6 | 0.7 | 44.0 | 0.6 | 65.7 | 3.54 | 23.4 (4.11) | 2.81 |
-| 75672 | 1930 | before (dense) | 3.5 | 0.3 | 0.2 | 9.7 | 0.5 | 14.2 | 1.90 | 1.9 (0.85) | 7.44 |
-| 75672 | 1930 | after (dense) | 4.4 | 0.4 | 0.3 | 9.6 | 0.6 | 15.2 | 1.70 | 2.0 (0.85) | 7.47 |
+| DOFs | p | backend (method) | solves | mesh | assembly | contact | eigen | rest | wall | peak GB | factor s (peak GB) | ratio |
+|---|---|---|---|---|---|---|---|---|---|---|---|---|
+| 565140 | 8352 | pardiso (arpack) | 115 | 5.5 | 3.9 | 1.6 | 204.1 | 0.7 | 215.9 | 8.50 | 147.7 (9.62) | 1.46 |
+| 278934 | 5170 | pardiso (arpack) | 131 | 2.7 | 1.4 | 0.9 | 45.2 | 0.7 | 50.7 | 3.38 | 25.7 (3.89) | 1.98 |
+| 127560 | 3017 | pardiso (arpack) | 97 | 1.5 | 0.8 | 0.5 | 29.5 | 0.9 | 33.3 | 1.28 | 10.1 (1.49) | 3.30 |
+| 127560 | 3017 | scipy (arpack) | 97 | 1.1 | 0.5 | 0.3 | 89.6 | 0.7 | 92.1 | 2.82 | 40.2 (3.07) | 2.29 |
 
-Where the 283 k solve goes (cProfile, in one process): mesh 21.7 s = gmsh's generate(3)
-13.0 + cells3d.locate_faces 7.3 (called once per face group, each time ranking all 6.4 M
-cell faces); assembly 2.0; contact 1.3; eigen 46.5 = the factorization of K_c 21.2 (analysis
-2.4, numeric 18.6) + ARPACK's 150 solves 24.7 (0.17 s each; k = 2). Measured beside it:
-gmsh's HXT (Mesh.Algorithm3D = 10, one thread) meshes 51 k nodes in 1.1 s against Delaunay's
-9.3 s (11% fewer nodes, a better worst cell); ARPACK needs 96 applications at tol = 1e-10
-against 149 at tol = 0 (76 k DOFs, the same alpha to 12 digits), and no fewer with ncv 30-80.
-The dense path (3p <= 8000) pays for its Schur complement: PARDISO's onto 5790 rows takes
-10 s against 2.4 s for the plain factorization (76 k DOFs; 91 M against 51 M factor entries).
-
-SciPy-only install (SuperLU with critfric's orders):
-
-| DOFs | p | tree (method) | mesh | assembly | contact | eigen | rest | wall | peak GB | factor s (peak GB) | ratio |
-|---|---|---|---|---|---|---|---|---|---|---|---|
-| 283185 | 4754 | + 3D ARPACK order (arpack) | 20.6 | 1.4 | 0.7 | 299.1 | 0.6 | 322.3 | 11.10 | 212.9 (11.92) | 1.51 |
-| 144351 | 3017 | after (arpack) | 7.6 | 0.6 | 0.4 | 1351.0 | 0.5 | 1360.1 | 12.42 | 54.6 (3.69) | 24.9 |
-| 144351 | 3017 | + 3D ARPACK order (arpack) | 8.3 | 0.7 | 0.4 | 78.4 | 0.6 | 88.3 | 3.32 | 51.2 (3.70) | 1.73 |
-| 75672 | 1930 | before (dense) | | | | | | 140.1 | 5.45 | | |
-| 75672 | 1930 | after (dense) | 4.1 | 0.3 | 0.2 | 36.0 | 0.6 | 41.3 | 3.16 | 13.9 (1.57) | 2.98 |
+Where the 279 k solve goes: the factorization of K_c (about one bare factorization), then
+ARPACK's 131 solves at ~0.16 s each (0.0062 factorizations: the solves read the 330 M
+entries of the factor and are bound by memory bandwidth), then 5.7 s of meshing, assembly,
+contact basis and writing. The solves cost about n^(4/3), the factorization about n^2: the
+ratio falls with the size (1.46 at 565 k DOFs). Measured beside it and not taken: block
+solves (32 right-hand sides cost 4.9 single solves, but a block Krylov space needs 11 times
+more vectors for the same two eigenvalues: 704 against 64 at 41 k DOFs), PARDISO's partial
+solve for sparse right-hand sides (iparm[30]: it orders the marked rows last, 1.6 x the
+factor's entries and 3.8 x the factorization time at 63 k DOFs), critfric's geometric
+nested dissection as PARDISO's user order (21% more entries than METIS at 106 k DOFs).
 
 The memory of every run that calibrates critfric.guards' 3D model: box3d_memory.csv (P1, P2,
 Q1, Q2; 20 k-570 k DOFs; both backends).
@@ -82,8 +72,8 @@ nu = 0.3
 element = "{element}"
 size = {size}
 """
-HEADER = ("| DOFs | p | backend (method) | mesh | assembly | contact | eigen | rest | wall "
-          "| peak GB | factor s (peak GB) | ratio |\n" + "|---" * 12 + "|")
+HEADER = ("| DOFs | p | backend (method) | solves | mesh | assembly | contact | eigen | rest "
+          "| wall | peak GB | factor s (peak GB) | ratio |\n" + "|---" * 13 + "|")
 FIELDS = ("element", "size", "backend", "n_dofs", "n_contact", "method", "applications",
           *STAGES, "wall", "peak_mb", "factor", "factor_peak_mb", "nnz_factor", "ratio", "note")
 
@@ -162,7 +152,7 @@ def factor(root: Path, element: str, size: float, backend: str) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", default="P1:0.016:pardiso,P1:0.016:scipy",
+    ap.add_argument("--runs", default="P1:0.0149:pardiso,P1:0.0149:scipy",
                     help="element:size:backend, comma-separated")
     ap.add_argument("--root", default=str(ROOT), help="critfric checkout to measure")
     ap.add_argument("--csv", default="", help="append the rows to this CSV file")
@@ -185,6 +175,7 @@ def main() -> None:
         r.update(element=element, size=size, backend=backend, ratio=r["wall"] / r["factor"])
         rest = r["wall"] - sum(r[s] for s in STAGES)
         print(f"| {r['n_dofs']} | {r['n_contact']} | {backend} ({r['method']}) | "
+              f"{r['applications']} | "
               + " | ".join(f"{r[s]:.1f}" for s in STAGES)
               + f" | {rest:.1f} | {r['wall']:.1f} | {r['peak_mb'] / 1e3:.2f} "
               f"| {r['factor']:.1f} ({r['factor_peak_mb'] / 1e3:.2f}) | {r['ratio']:.2f} |",
