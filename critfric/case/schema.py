@@ -102,10 +102,8 @@ SCHEMA: dict[str, dict[str, c.Key]] = {
         "shift": c.Key(c.number(-1e6, 1e6), 0.0, "look for eigenvalues nearest this friction "
                      "value (|alpha| above 1e6 counts as infinite)"),
         "gamma": c.Key(c.gamma, 1, "slip sign of every contact node (+1 or -1)"),
-        # 1e-12: the coefficients agree with the dense path's to ~1e-14 (3D box, 41 k DOFs) in
-        # 75 solves where machine precision takes 110
         "tol": c.Key(c.number(0.0, 1e-2), 1e-12, "ARPACK relative tolerance of the Ritz "
-                     "values (0: machine precision)"),
+                     "values (0: machine precision)"),  # 1e-12: the dense values to ~1e-14
         "maxiter": c.Key(c.integer(1, 10**7), None, "ARPACK iteration cap (default: ARPACK's)"),
         "real_tol": c.Key(c.number(0.0, 1e-2), 1e-8, "|Im a| <= real_tol |a| counts as real"),
         "slip_angle": c.Key(c.number(-720.0, 720.0), 0.0, "3D: slip direction, degrees from t1 "
