@@ -239,6 +239,17 @@ class Explorer:
         t, z = a.at(0.5)
         return np.abs(self.key(t, z) - self.key(t, b.state.solve(t))).max() <= SAME_TOL
 
+    def _retraces(self, a: Arc, arrival: Arc) -> bool:
+        """Whether ``a`` leaves the vertex back along the piece the curve ``arrival`` came by:
+        another state with the same solutions there (a slipping and a free node where X = Y
+        = 0), not another piece."""
+        if not arrival.d or a.d != -arrival.d:
+            return False
+        span = min(abs(a.t1 - arrival.t1), abs(arrival.t1 - arrival.t0))
+        t = arrival.t1 + a.d * 0.5 * span
+        return span > 0 and np.abs(self.key(t, a.state.solve(t))
+                                   - self.key(t, arrival.state.solve(t))).max() <= SAME_TOL
+
     def _walked(self, arc: Arc) -> bool:
         return self.walked.find(arc.key) is not None
 
@@ -335,7 +346,8 @@ class Explorer:
             if known is not None and known[0] is not None:
                 self.events[known[0]].curves.append(ci)
             arcs, singular = self.arcs(t, z, (arc.state.code, -arc.d) if arc.d else None)
-            others = [a for a in arcs if np.abs(a.key - arc.key).max() > SAME_TOL]
+            others = [a for a in arcs if np.abs(a.key - arc.key).max() > SAME_TOL
+                      and not self._retraces(a, arc)]
             fresh = [a for a in others if not self._walked(a)]
             event = None if known is not None else self._event(arc, others, singular, t, ci)
             if known is None:

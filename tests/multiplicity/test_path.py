@@ -169,6 +169,11 @@ def test_one_triangle_fig_2_branch_at_3_minus_4_nu():
     assert min(v for c in r.curves for v in values(c, False)) == 0.0
     assert max(v for c in r.curves for v in values(c, False)) == 3.0
     assert min(v for c in r.curves for v in values(c, True)) == pytest.approx(crit)
+    # the slip solution has X = Y = 0, a free node's solution too: no fold where a curve
+    # meets the end of the range, no piece walking the slip solution back as "free"
+    assert [e.kind for e in r.events] == ["branch"]
+    assert all(p.state != ["free"] for c in r.curves for p in c.pieces)
+    assert sum(len(c.pieces) for c in r.curves) == 4  # slip, continuum, stuck; slip beyond
     data = r.to_json()
     assert data["parameter"] == "friction" and data["range"] == [0.0, 3.0]
     assert set(data["curves"][0]["points"][0]) == {"value", "status", "Un", "Ut", "X", "Y"}
