@@ -27,6 +27,8 @@ def main() -> None:
 
         if exc.code == 130:  # typer's own silent Ctrl-C exit, or a command's
             _interrupted(None if said_interrupted() else "critfric: interrupted")
+        if exc.code == 143 and said_interrupted():  # a command stopped by SIGTERM
+            _interrupted(None, 143)
         _quiet()
         raise
     _quiet()
@@ -50,17 +52,18 @@ def _from_interrupt(exc: BaseException) -> bool:
     return False
 
 
-def _interrupted(line: str | None) -> None:
-    """Say it (unless a command did), then leave at once: a second Ctrl-C during the
-    interpreter's shutdown must not turn into a traceback or a death by signal."""
+def _interrupted(line: str | None, code: int = 130) -> None:
+    """Say it (unless a command did), then leave at once: a second Ctrl-C (or SIGTERM)
+    during the interpreter's shutdown must not turn into a traceback or a death by signal."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     if line:
         sys.stderr.write(line + "\n")
     sys.stderr.flush()
     sys.stdout.flush()
-    os._exit(130)
+    os._exit(code)
 
 
 def __getattr__(name: str):

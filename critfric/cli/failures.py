@@ -2,7 +2,8 @@
 
 A :class:`CritfricError` becomes ``critfric: error: <message>`` on stderr and its exit code
 (2 for bad input, 1 for a numerical or I/O failure); Ctrl-C becomes ``critfric: interrupted``
-with what was kept, and exit code 130.
+with what was kept, and exit code 130; SIGTERM (under a command's interrupt guard) the same
+with ``critfric: terminated`` and exit code 143.
 """
 
 from __future__ import annotations
@@ -13,8 +14,10 @@ from contextlib import contextmanager
 import typer
 
 from ..errors import CritfricError
+from ..files.safety import Terminated
 
 INTERRUPTED = 130  # the shell's code for a process ended by SIGINT
+TERMINATED = 143  # ... and by SIGTERM
 _SAID = {"interrupted": False}
 
 
@@ -61,7 +64,8 @@ def reported(kept: str = "nothing was written") -> Iterator[Ending]:
     except CritfricError as exc:
         say(f"critfric: error: {exc}", level=0)
         raise typer.Exit(exc.exit_code) from None
-    except KeyboardInterrupt:  # typer would exit 130 without a word
-        say(f"critfric: interrupted: {ending.kept}", level=0)
+    except KeyboardInterrupt as exc:  # typer would exit 130 without a word
+        term = isinstance(exc, Terminated)
+        say(f"critfric: {'terminated' if term else 'interrupted'}: {ending.kept}", level=0)
         _SAID["interrupted"] = True
-        raise typer.Exit(INTERRUPTED) from None
+        raise typer.Exit(TERMINATED if term else INTERRUPTED) from None

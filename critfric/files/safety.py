@@ -16,54 +16,86 @@ import h5py
 from ..errors import CaseError, WriteError
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a batch scheduler's stop) under an :class:`interrupt_guard`: handled as a
+    Ctrl-C is (every write finished or undone, workers stopped), with exit code 143."""
+
+
+_GUARDS: list = []  # the interrupt guards entered, innermost last
+
+
 class interrupt_guard:
-    """Ctrl-C that is never lost. SIGINT raises KeyboardInterrupt as usual and also sets a flag;
-    :meth:`check` raises it again at a safe point. CPython drops (and prints) an exception
-    raised inside a garbage-collection callback or ``__del__``: there the interrupt is kept
-    silently for :meth:`check`. A no-op outside the main thread or if SIGINT is ignored."""
+    """Ctrl-C that is never lost. SIGINT raises KeyboardInterrupt as usual (SIGTERM:
+    :class:`Terminated`) and also sets a flag; :meth:`check` raises it again at a safe point.
+    CPython drops (and prints) an exception raised inside a garbage-collection callback or
+    ``__del__``: there the interrupt is kept silently for :meth:`check`. A no-op outside the
+    main thread; a signal that is ignored stays ignored."""
+
+    SIGNALS = ("SIGINT", "SIGTERM")
 
     def __enter__(self) -> interrupt_guard:
-        self.hit = False
-        self._defer = False
-        self._saved = None
+        self.hit = None  # the exception type to raise, once a signal came
+        self._defer = 0
+        self._saved = {}
         try:
-            if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
-                self._saved = signal.signal(signal.SIGINT, self._handler)
+            for name in self.SIGNALS:
+                number = getattr(signal, name, None)
+                if number is not None and signal.getsignal(number) is not signal.SIG_IGN:
+                    self._saved[number] = signal.signal(number, self._handler)
         except ValueError:  # not the main thread
             return self
         self._hook = sys.unraisablehook
         sys.unraisablehook = self._unraisable
+        _GUARDS.append(self)
         return self
 
     def _handler(self, signum, frame):
-        self.hit = True
+        self.hit = self.hit or (Terminated if signum == getattr(signal, "SIGTERM", None)
+                                else KeyboardInterrupt)
         if not self._defer:
-            raise KeyboardInterrupt
+            raise self.hit
 
     @contextmanager
     def deferred(self) -> Iterator[None]:
         """Hold a Ctrl-C back until the block is done, then raise it: for a write and the
-        record that it happened, so that what an interruption says matches what is on disk."""
-        self._defer = True
+        record that it happened, so that what an interruption says matches what is on disk.
+        Blocks nest: the outermost one raises."""
+        self._defer += 1
         try:
             yield
         finally:
-            self._defer = False
-        self.check()
+            self._defer -= 1
+        if not self._defer:
+            self.check()
 
     def _unraisable(self, info) -> None:
         if not (self.hit and issubclass(info.exc_type, KeyboardInterrupt)):
             self._hook(info)
 
     def check(self) -> None:
-        """Raise KeyboardInterrupt if Ctrl-C was pressed, even if it was swallowed."""
+        """Raise KeyboardInterrupt (SIGTERM: :class:`Terminated`) if a signal came, even if
+        it was swallowed."""
         if self.hit:
-            raise KeyboardInterrupt
+            raise self.hit
 
     def __exit__(self, *exc) -> None:
-        if self._saved is not None:
-            signal.signal(signal.SIGINT, self._saved)
+        if self in _GUARDS:
+            _GUARDS.remove(self)
             sys.unraisablehook = self._hook
+        for number, saved in self._saved.items():
+            signal.signal(number, saved)
+
+
+@contextmanager
+def held() -> Iterator[None]:
+    """A write that an interrupt never cuts in two: under an :class:`interrupt_guard`, a
+    Ctrl-C or SIGTERM during the block is raised when it ends; outside one, nothing is held
+    (the write must then undo itself)."""
+    if _GUARDS:
+        with _GUARDS[-1].deferred():
+            yield
+    else:
+        yield
 
 
 def _lock(fd: int) -> None:

@@ -21,21 +21,27 @@ Layout (``schema_version`` 1)::
 
 Files written before the slip_angle and r_positive columns read (and resume) as before.
 
-Every write (:func:`append_point`, :func:`write_limits`) goes to a copy of the file that then
-replaces it atomically: HDF5 itself is not crash-safe (a process killed inside a write can
-leave a file that no longer opens), a rename is. So a sweep killed at any moment keeps every
-point it had finished, and readers never see a half-written file. The copy costs O(file size)
-per point: a few ms for thousands of points. The number of finished rows is the length of
-``points/status``, written last. Only the parent (or the Dask client) writes.
+Every write (:func:`open_sweep`, :func:`append_point`, :func:`write_limits`) changes a copy
+of the file in memory, writes it whole to a temporary file beside it and renames that over
+the file: HDF5 itself is not crash-safe (a process killed inside a write can leave a file that
+no longer opens; a write that fails half way can crash it), plain writes and a rename are. So
+a sweep killed at any moment keeps every point it had finished, readers never see a
+half-written file, and a full disk (or quota, or file-size limit) is a :class:`WriteError`
+that says how many points the unchanged file keeps, with nothing left behind. Under an
+:class:`~critfric.files.safety.interrupt_guard` a Ctrl-C during a write comes after it. The
+copy costs O(file size) per point: a few ms for thousands of points. The number of finished
+rows is the length of ``points/status``, written last. Only the parent (or the Dask client)
+writes.
 """
 
 from __future__ import annotations
 
+import errno
+import io
 import json
 import math
 import os
-import shutil
-import tempfile
+import secrets
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -46,7 +52,7 @@ import numpy as np
 from .._version import __version__
 from ..errors import CaseError, WriteError
 from .results import file_attrs
-from .safety import atomic_h5, check_output
+from .safety import check_output, held
 from .validate import SCHEMA_VERSION
 
 STR = h5py.string_dtype()
@@ -109,32 +115,76 @@ def open_sweep(path: Path, *, case, grid, force: bool = False) -> set[tuple]:
             g.create_dataset(name, (0, count), np.float64, maxshape=(None, count),
                              chunks=(256, count), fillvalue=np.nan)
 
-    atomic_h5(path, fill)
+    with held():
+        buffer = io.BytesIO()
+        with h5py.File(buffer, "w") as f:
+            fill(f)
+        _replace(path, buffer.getbuffer(), "create", "nothing was written (no point was "
+                 "computed yet)")
     return set()
 
 
+#: the errors of a write that found no room: a full disk, a quota, the file-size limit
+FULL = {errno.ENOSPC, errno.EFBIG} | ({errno.EDQUOT} if hasattr(errno, "EDQUOT") else set())
+
+
 @contextmanager
-def _rewrite(path: Path) -> Iterator[h5py.File]:
-    """A copy of the file opened for writing; it replaces the file (``os.replace``, atomic)
-    only once written and closed, so a process killed at any moment leaves the old file or
-    the new one, never a torn one (a stray ``.<name>.*.tmp`` at worst)."""
-    tmp = None
-    try:  # the temporary file is made inside: an interrupt right after it still removes it
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.close(fd)
-        shutil.copy(path, tmp)
-        with h5py.File(tmp, "r+") as f:
+def _rewrite(path: Path, what: str = "add a point to") -> Iterator[h5py.File]:
+    """The file, copied into memory and opened for writing; once closed, the new bytes
+    replace the file (:func:`_replace`), so a process killed at any moment leaves the old
+    file or the new one, never a torn one, and a failed write leaves the old one."""
+    with held():
+        try:
+            data = path.read_bytes()
+        except OSError as exc:
+            raise WriteError(f"cannot {what} {path}: reading it failed "
+                             f"({exc.strerror or exc})") from None
+        buffer = io.BytesIO(data)
+        with h5py.File(buffer, "r+") as f:
+            kept = _kept(f)
             yield f
+        _replace(path, buffer.getbuffer(), what, kept)
+
+
+def _kept(f: h5py.File) -> str:
+    """What a sweep file holds, said when a write to it fails."""
+    points = len(f["points/status"]) if "points/status" in f else 0
+    minima = len(f["minima/status"]) if "minima/status" in f else 0
+    return (f"the file is unchanged, its {points} point{'s' * (points != 1)}"
+            + (f" and {minima} minim{'a' if minima != 1 else 'um'} over directions"
+               if minima else "") + " are safe")
+
+
+def _replace(path: Path, data, what: str, kept: str) -> None:
+    """Write ``data`` to a temporary file beside ``path`` (the old file's permissions, a new
+    one's from the umask), flush it to disk and rename it over ``path``. Any failure removes
+    the temporary file, leaves ``path`` as it was and is a one-line :class:`WriteError`."""
+    tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")  # named before made:
+    try:  # whatever stops this block (an error, an interrupt) finds it to remove
+        try:
+            mode = os.stat(path).st_mode & 0o7777
+        except FileNotFoundError:
+            mode = None
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL
+                     | getattr(os, "O_NOFOLLOW", 0), 0o666)
+        with open(fd, "wb") as out:
+            if mode is not None:
+                os.fchmod(out.fileno(), mode)
+            out.write(data)
+            out.flush()
+            os.fsync(out.fileno())
         os.replace(tmp, path)
-    except OSError as exc:  # disk full, I/O error: the file keeps every point written before
-        if tmp is not None:
-            Path(tmp).unlink(missing_ok=True)
-        raise WriteError(f"cannot add a point to {path} ({exc.strerror or exc}); the points "
-                         "written before are kept: free some space and run the sweep again "
-                         "to compute only the rest") from None
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        why = exc.strerror or str(exc)
+        if exc.errno in FULL:
+            raise WriteError(f"cannot {what} {path}: the disk is full ({why}); {kept}: free "
+                             "some space and run the sweep again to compute only the rest"
+                             ) from None
+        raise WriteError(f"cannot {what} {path} ({why}); {kept}: run the sweep again to "
+                         "compute only the rest") from None
     except BaseException:
-        if tmp is not None:
-            Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
 
 
@@ -165,7 +215,7 @@ def append_point(path: Path, row: dict) -> None:
 def append_minimum(path: Path, minimum: dict) -> None:
     """Append one minimum over slip directions (a row of /minima, created by the first;
     atomic)."""
-    with _rewrite(Path(path)) as f:
+    with _rewrite(Path(path), "add a minimum over directions to") as f:
         if "minima" not in f:
             g = f.create_group("minima")
             for name in MINIMUM_FLOATS:
@@ -257,7 +307,7 @@ def write_limits(path: Path, limits, grid=None, rows=None, minima=()) -> None:
     gridded view at the root (atomic): netCDF-4 style variables over named dimensions, so
     that ``xarray.open_dataset(path, engine="h5netcdf")`` reads the sweep as it was asked
     (with ``minima``, also the minimum over slip directions and its angle)."""
-    with _rewrite(Path(path)) as f:
+    with _rewrite(Path(path), "write the h -> 0 limits to") as f:
         if "limits" in f:
             del f["limits"]
         g = f.create_group("limits")

@@ -8,7 +8,10 @@ whole (cost ~ (order / size)^2 per point), then handed out largest first.
 
 Local workers are ``spawn``-ed processes started with the BLAS/OpenMP thread variables set to 1
 (numpy reads them when it loads), so J workers on J cores do not oversubscribe. A worker
-that dies records its point as failed and is replaced. On a Dask cluster, the nannies set the
+that dies records its point as failed and is replaced. Ctrl-C and SIGTERM are the parent's
+alone: a worker is born with both blocked (a signal to the process group during its start-up
+is no traceback and no death), then ignores them; the parent, interrupted, kills every worker
+at once (SIGKILL, no point is waited for) and reaps it. On a Dask cluster, the nannies set the
 same variables by default; tasks are pinned to one worker per group (loosely, so a lost worker
 does not stall the sweep).
 """
@@ -73,9 +76,37 @@ def pinned_threads():
                 os.environ[k] = v
 
 
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM")
+                     if hasattr(signal, name))
+WAIT_SECONDS = 0.5  # the parent wakes at least this often to honour a signal
+
+
+@contextmanager
+def signals_held() -> Iterator[None]:
+    """Ctrl-C and SIGTERM blocked in this thread for the block, then delivered: a process
+    started inside inherits them blocked, and one that comes meanwhile is raised once the
+    worker is in the pool (so it is stopped with the others)."""
+    if not hasattr(signal, "pthread_sigmask"):  # Windows
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _ignore(signum, frame) -> None:
+    """A worker's SIGTERM: the parent decides (a handler, not SIG_IGN, so that programs the
+    worker starts get the default action back)."""
+
+
 def _worker_main(conn, fn: Callable, spec: dict) -> None:
     """A worker process: run each chunk received, send one row per point; None stops."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides what Ctrl-C does
+    if hasattr(signal, "pthread_sigmask"):  # born with both blocked: now ignored instead
+        signal.signal(signal.SIGTERM, _ignore)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
     try:
         conn.send(READY)
         while (chunk := conn.recv()) is not None:
@@ -86,14 +117,24 @@ def _worker_main(conn, fn: Callable, spec: dict) -> None:
 
 
 class _Worker:
-    def __init__(self, ctx, fn, spec):
+    def __init__(self, ctx, fn, spec, pool: list, at: int | None = None):
+        """Start a worker and put it in ``pool`` (at index ``at``, else at the end) before
+        any Ctrl-C or SIGTERM that came meanwhile is raised."""
         self.conn, child = ctx.Pipe()
-        with pinned_threads():
-            self.process = ctx.Process(target=_worker_main, args=(child, fn, spec), daemon=True)
-            self.process.start()
-        child.close()
         self.pending: deque = deque()
         self.ready = False
+        with signals_held():
+            with pinned_threads():
+                self.process = ctx.Process(target=_worker_main, args=(child, fn, spec),
+                                           daemon=True)
+                try:
+                    self.process.start()
+                finally:
+                    child.close()
+            if at is None:
+                pool.append(self)
+            else:
+                pool[at] = self
 
     def stop(self, *, kill: bool) -> None:
         if self.process.is_alive() and not kill:
@@ -114,14 +155,16 @@ def run_local(jobs: int, fn: Callable, spec: dict, points: list) -> Iterator[tup
 
     ctx = mp.get_context("spawn")
     queue = deque(make_chunks(points, jobs))
-    pool = [_Worker(ctx, fn, spec) for _ in range(min(jobs, len(queue)))]
+    pool: list[_Worker] = []
     clean = False
     try:
+        for _ in range(min(jobs, len(queue))):
+            _Worker(ctx, fn, spec, pool)
         for w in pool:
             _assign(w, queue)
         while any(w.pending for w in pool):
             busy = [w for w in pool if w.pending]
-            wait([w.conn for w in busy] + [w.process.sentinel for w in busy])
+            wait([w.conn for w in busy] + [w.process.sentinel for w in busy], WAIT_SECONDS)
             for i, w in enumerate(pool):
                 if not w.pending:
                     continue
@@ -148,7 +191,7 @@ def run_local(jobs: int, fn: Callable, spec: dict, points: list) -> Iterator[tup
                     if w.pending:
                         queue.appendleft(list(w.pending))
                     w.stop(kill=True)
-                    pool[i] = _Worker(ctx, fn, spec)
+                    _Worker(ctx, fn, spec, pool, at=i)
                     _assign(pool[i], queue)
         clean = True
     finally:
