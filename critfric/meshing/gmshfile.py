@@ -20,6 +20,7 @@ Both give first-order cells; P2/Q2 midpoints are then added on straight edges
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import math
 import warnings
@@ -35,7 +36,7 @@ from .geoscript import refusals
 from .gmshfile3d import build as build_solid
 from .gmshfile3d import domain_entities, has_solid_cells, mesh_solid_geo, read_solid_msh
 from .mesh import _gmsh_session, inline_mesh
-from .sandbox import read_input, run_in_child
+from .sandbox import read_input, run_in_child, set_stage
 
 ENTRY = "critfric.meshing.gmshfile:child_mesh"  # what the sandboxed child runs
 
@@ -215,6 +216,21 @@ def _expected_size(size: float | None) -> float:
                gmsh.option.getNumber("Mesh.MeshSizeMin"))
 
 
+def _longest_segment() -> float:
+    """The longest segment of the curves' mesh: every cell of an unstructured surface mesh
+    (sizes extended from its boundary) or a transfinite one is about that size or smaller."""
+    import gmsh
+
+    tags, coords, _ = gmsh.model.mesh.getNodes(1, -1, includeBoundary=True)
+    _, nodes = gmsh.model.mesh.getElementsByType(1)[:2]
+    if not len(nodes):
+        return math.inf
+    index = np.zeros(int(np.max(tags)) + 1, dtype=np.int64)
+    index[np.asarray(tags, dtype=np.int64)] = np.arange(len(tags))
+    x = np.reshape(coords, (-1, 3))[index[np.reshape(nodes, (-1, 2)).astype(np.int64)]]
+    return float(np.linalg.norm(x[:, 1] - x[:, 0], axis=1).max())
+
+
 def _extract(surfaces: list[int]):
     """Nodes, first-order cells of the surfaces and node pairs of every physical curve."""
     import gmsh
@@ -250,14 +266,18 @@ def _extract(surfaces: list[int]):
 
 def mesh_geo(path: Path, *, element: str, size: float | None = None,
              domain: list[str] | None = None, trust: bool = False,
-             check: Callable[[Footprint, float], None] | None = None,
-             shown: str | None = None) -> Mesh:
+             check: Callable[..., None] | None = None,
+             shown: str | None = None, stage: Callable[[str], None] | None = None) -> Mesh:
     """Mesh a gmsh .geo script (refused if it can reach outside, unless ``trust``).
 
     size  : upper bound on the element size (``Mesh.MeshSizeMax``); the script's own sizes
             apply below it.
     check : called with the footprint and the expected mesh size before meshing (resource
-            guard); it raises to refuse.
+            guard), and (2D) with the footprint, the longest segment of the curves once they
+            are meshed and ``curves=True`` (transfinite counts, size fields); it raises to
+            refuse.
+    stage : called with "geometry" before the script is evaluated, "meshing 2" (or 3: the
+            body's dimension) after.
     """
     import gmsh
 
@@ -265,12 +285,15 @@ def mesh_geo(path: Path, *, element: str, size: float | None = None,
     text = _read_text(path)
     if not trust:
         check_geo(path, text)
+    stage = stage or (lambda _: None)
     with _gmsh_session():
+        stage("geometry")
         try:
             gmsh.merge(str(path))
         except Exception as exc:  # gmsh reports script errors as bare Exceptions
             raise CaseError(f"gmsh cannot read this script: {exc}", file=str(path),
                             key="geometry.file") from None
+        stage(f"meshing {3 if gmsh.model.getEntities(3) else 2}")
         if gmsh.model.getEntities(3):  # a 3D body: its volumes are meshed
             gmsh.option.setNumber("Mesh.ElementOrder", 1)
             h = _expected_size(size)
@@ -293,7 +316,12 @@ def mesh_geo(path: Path, *, element: str, size: float | None = None,
         if size:
             gmsh.option.setNumber("Mesh.MeshSizeMax", size)
         try:
+            gmsh.model.mesh.generate(1)
+            if check is not None:  # the curves' own counts and sizes, before the surfaces
+                check(_footprint(surfaces, size)[0], _longest_segment(), curves=True)
             gmsh.model.mesh.generate(2)
+        except CaseError:
+            raise
         except Exception as exc:
             raise SolverError(f"gmsh failed to mesh {name}: {exc}; try another mesh size")
         points, cells, edges = _extract(surfaces)
@@ -338,7 +366,8 @@ def file_mesh(case, *, max_dofs: int | None = None, trust_geo: bool = False) -> 
         check_geo(path, _decode(data, path))
     element = case.mesh["element"]
     job = {"kind": kind, "element": element, "size": case.mesh["size"],
-           "domain": case.geometry["domain"], "max_dofs": max_dofs, "trust": trust_geo}
+           "domain": case.geometry["domain"], "max_dofs": max_dofs, "trust": trust_geo,
+           "max_nodes": max_nodes(max_dofs, element) if kind == "geo" else None}
     mesh = run_in_child(path, data, job, entry=ENTRY, source=case.source)
     # the estimate misses size fields and transfinite counts: check the real mesh too
     check_dofs(mesh.dim * mesh.n_nodes, element=element, what=f"the mesh of {path.name}",
@@ -354,10 +383,27 @@ def child_mesh(work: Path, job: dict) -> Mesh:
     if job["kind"] == "msh":
         return read_msh(path, element=element, domain=job["domain"], shown=shown)
 
-    def check(footprint: Footprint, h: float) -> None:
-        check_dofs(footprint.dofs(h, element), element=element,
-                   what=f"{shown} at mesh size about {h:.3g}", source=None,
-                   footprint=footprint, max_dofs=job["max_dofs"])
+    def check(footprint: Footprint, h: float, curves: bool = False) -> None:
+        where = (f"its curves meshed with segments up to {h:.3g} (transfinite counts, size "
+                 "fields)" if curves else f"mesh size about {h:.3g}")
+        check_dofs(footprint.dofs(h, element), element=element, what=f"{shown} at {where}",
+                   source=str(path) if curves else None,
+                   key="geometry.file" if curves else "mesh.size", footprint=footprint,
+                   max_dofs=job["max_dofs"])
 
     return mesh_geo(path, element=element, size=job["size"], domain=job["domain"],
-                    trust=job["trust"], check=check, shown=shown)
+                    trust=job["trust"], check=check, shown=shown,
+                    stage=functools.partial(set_stage, work))
+
+
+def max_nodes(max_dofs: int | None, element: str) -> dict[str, float]:
+    """The most first-order mesh nodes the resource guard can allow, by dimension ("2",
+    "3"): the DOFs of ``max_dofs`` or, without it, the DOFs that fit in the memory available,
+    over dim DOFs a node and order^dim nodes per vertex (P2/Q2 add edge and face nodes)."""
+    from ..guards import available_memory, dofs_that_fit
+
+    order = 2 if element in ("P2", "Q2") else 1
+    memory = available_memory()
+    return {str(d): (max_dofs if max_dofs is not None else
+                     dofs_that_fit(memory, dim=d, element="Q1" if element[0] == "Q" else "P1"))
+            / (d * order**d) for d in (2, 3)}

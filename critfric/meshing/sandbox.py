@@ -10,6 +10,16 @@ no other file by a relative name), and runs this module there in a new Python pr
   reach critfric's ``--json``), an environment reduced to PATH and the private directory;
 * gmsh started without its option files, terminal output off.
 
+While it runs, the parent watches it (:func:`_watch`): the child names its stage in a
+``stage`` file; a script's evaluation (stage "geometry": ``For`` loops, macros, booleans) may
+take GEOMETRY_SECONDS of wall time, and from the meshing on (stage "meshing 2" or "meshing 3",
+the body's dimension) the child's resident memory may grow by WATCH_BYTES_PER_NODE for each
+node the resource guard allows (``job["max_nodes"]``, by dimension, from ``--max-dofs`` or the
+memory available) plus WATCH_SLACK_BYTES: gmsh needs up to 1.6 kB a node in 2D, 3.1 kB in 3D
+(peak resident memory, unit square and cube, 7 k to 290 k nodes), so a script that asks for
+far more nodes than allowed (a size field, a transfinite count) is stopped once its mesh
+passes about twice the allowance, not at the CPU limit.
+
 The child answers with ``mesh.npz`` (the Mesh arrays; the named boundary facets are edges in
 2D, faces in 3D) or ``error.json`` (a CaseError or SolverError to raise again); anything else
 (a crash, ``sys.exit`` or ``abort`` in a library, a limit hit) becomes a clear error in the
@@ -24,6 +34,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +51,10 @@ MSH_BYTES_PER_BYTE = 64  # and, reading a .msh, this much more per byte of the f
 MAX_INPUT_BYTES = 1 << 30  # a gmsh file larger than this is refused unread
 OUTPUT_BYTES = 4 << 30  # the largest file a child may write (its mesh.npz)
 _CAPTURE = 4000  # characters of a failed child's stderr quoted in the message
+GEOMETRY_SECONDS = 5.0  # wall time a .geo script's evaluation may take (before any meshing)
+WATCH_BYTES_PER_NODE = {2: 3072, 3: 6144}  # memory a meshing child may add per allowed node
+WATCH_SLACK_BYTES = 96 << 20  # and this much more whatever the allowance
+POLL_SECONDS = 0.05  # how often the parent looks at the child
 
 
 def run_in_child(path: Path, data: bytes, job: dict, *, entry: str,
@@ -57,17 +72,17 @@ def run_in_child(path: Path, data: bytes, job: dict, *, entry: str,
         code = ("import sys; sys.path.insert(0, sys.argv[1]); "
                 "from critfric.meshing.sandbox import child_main; child_main(sys.argv[2])")
         package_root = str(Path(__file__).resolve().parents[2])
+        proc = subprocess.Popen(
+            [sys.executable, "-I", "-c", code, package_root, entry], cwd=tmp, env=env,
+            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            preexec_fn=functools.partial(_limits, _space(job, data))  # (POSIX systems)
+            if os.name == "posix" else None)
         try:
-            proc = subprocess.run(
-                [sys.executable, "-I", "-c", code, package_root, entry], cwd=tmp, env=env,
-                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                timeout=WALL_SECONDS, check=False,  # (limits by setrlimit: POSIX systems)
-                preexec_fn=functools.partial(_limits, _space(job, data))
-                if os.name == "posix" else None)
-        except subprocess.TimeoutExpired:
-            raise CaseError(f"reading or meshing this file took more than {WALL_SECONDS} s "
-                            "and was stopped (an endless loop in a .geo script?)",
-                            file=str(path), key="geometry.file") from None
+            stderr = _watch(proc, work, job, path)
+        finally:
+            if proc.poll() is None:
+                _stop(proc)
+        proc = subprocess.CompletedProcess(proc.args, proc.returncode, b"", stderr)
         error = work / "error.json"
         if error.is_file():
             raise _error_from(json.loads(error.read_text()), path, source)
@@ -75,6 +90,84 @@ def run_in_child(path: Path, data: bytes, job: dict, *, entry: str,
         if proc.returncode != 0 or not result.is_file():
             raise CaseError(_failure(proc), file=str(path), key="geometry.file")
         return _mesh_from(result, path)
+
+
+def _watch(proc: subprocess.Popen, work: Path, job: dict, path: Path) -> bytes:
+    """Wait for the child, stopping it (a CaseError) past the wall-clock limit, past
+    GEOMETRY_SECONDS in its "geometry" stage, or when its memory grows past what
+    ``job["max_nodes"]`` allows in its "meshing" stage; its stderr."""
+    start = time.monotonic()
+    stage, since, base, max_nodes = "", start, 0, None
+    while True:
+        try:
+            return proc.communicate(timeout=POLL_SECONDS)[1]
+        except subprocess.TimeoutExpired:
+            pass
+        now = time.monotonic()
+        why = None
+        if now - start > WALL_SECONDS:
+            why = (f"reading or meshing this file took more than {WALL_SECONDS} s and was "
+                   "stopped (an endless loop in a .geo script?)")
+        seen = _read_stage(work)
+        if seen != stage:
+            stage, since = seen, now
+            base = _resident(proc.pid)
+            dim = int(stage[-1]) if stage in ("meshing 2", "meshing 3") else None
+            max_nodes = (job.get("max_nodes") or {}).get(str(dim))
+        if stage == "geometry" and now - since > GEOMETRY_SECONDS:
+            why = (f"evaluating this gmsh script took more than {GEOMETRY_SECONDS:g} s of wall "
+                   "time before any meshing and was stopped (an endless For loop, a recursive "
+                   "macro?); allowed: a script whose geometry is built within "
+                   f"{GEOMETRY_SECONDS:g} s")
+        elif max_nodes is not None and _resident(proc.pid) - base > (
+                WATCH_SLACK_BYTES + WATCH_BYTES_PER_NODE[dim] * float(max_nodes)):
+            allows = (f"--max-dofs {job['max_dofs']}" if job.get("max_dofs") is not None
+                      else "the memory available")
+            why = (f"meshing this gmsh script was stopped: its mesh grew past the "
+                   f"{float(max_nodes):.3g} nodes that {allows} allows (a mesh-size field, a "
+                   "transfinite count or a mesh size far finer than the body?). Use a coarser "
+                   "mesh" + (", or a larger --max-dofs" if job.get("max_dofs") is not None
+                             else ", or pass --max-dofs N to override"))
+        if why is not None:
+            _stop(proc)
+            raise CaseError(why, file=str(path), key="geometry.file")
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    """End the child (its own process group) and reap it."""
+    import signal
+
+    try:
+        if os.name == "posix":
+            os.killpg(proc.pid, signal.SIGKILL)
+        else:
+            proc.kill()
+    except (ProcessLookupError, PermissionError):
+        proc.kill()
+    proc.communicate()
+
+
+def _read_stage(work: Path) -> str:
+    try:
+        return (work / "stage").read_text()
+    except (OSError, UnicodeDecodeError):
+        return ""
+
+
+def _resident(pid: int) -> int:
+    """Resident bytes of process ``pid`` (0 where /proc is not there)."""
+    try:
+        with open(f"/proc/{pid}/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return 0
+
+
+def set_stage(work: Path, stage: str) -> None:
+    """In the child: tell the watching parent the stage ("geometry", "meshing 2" or 3)."""
+    tmp = work / "stage.tmp"
+    tmp.write_text(stage)
+    os.replace(tmp, work / "stage")
 
 
 def read_input(path: Path) -> bytes:

@@ -223,11 +223,12 @@ def test_msh_domain_picks_one_surface(tmp_path):
         solve_case(file_case(msh, extra='domain = "bdy"'))
 
 
-def test_geo_whose_mesh_is_too_large_is_refused_after_meshing(tmp_path):
-    """Transfinite counts are not in the estimate: the mesh itself is checked."""
+def test_geo_whose_mesh_is_too_large_is_refused_from_its_curves(tmp_path):
+    """Transfinite counts: refused from the curves' mesh, before the surface is meshed."""
     geo = tmp_path / "body.geo"
     geo.write_text(SQUARE_GEO + "Transfinite Curve{1, 3} = 40; Transfinite Curve{2, 4} = 40;\n"
                    "Transfinite Surface{1};\n")
-    with pytest.raises(CaseError, match=r"the mesh of body\.geo gives about 3\.2e\+03 DOFs"):
+    with pytest.raises(CaseError, match=r"body\.geo.*segments up to 0\.0256.*gives about "
+                       r"3\.68e\+03 DOFs"):
         solve_case(file_case(geo), max_dofs=1000)
     assert solve_case(file_case(geo), max_dofs=4000).n_dofs > 2000
