@@ -357,7 +357,7 @@ def solve_prepared(prep: Prepared, case: Case, *, _release: bool = False) -> Res
         prep = turned(prep, case)
     t0 = time.perf_counter()
     E, nu = case.material["E"], case.material["nu"]
-    lam, G = lame(E, nu)
+    lam, G = lame(1.0, nu)  # the eigenvalues and modes do not depend on E: solved at E = 1
     s = case.solve
     system = prep.system
     state = contact_state(case, system)  # None: all slipping ([contact])
@@ -377,8 +377,8 @@ def solve_prepared(prep: Prepared, case: Case, *, _release: bool = False) -> Res
         {
             "alpha": m.alpha,
             "phi": system.to_xy(m.phi),
-            "theta_n": m.X,
-            "theta_t": m.Y,
+            "theta_n": E * m.X,  # the contact forces of phi at the case's E
+            "theta_t": E * m.Y,
             "residual": m.residual,
             "r": m.r,
         }

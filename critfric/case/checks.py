@@ -36,20 +36,32 @@ class BadEntry(Bad):
         self.key, self.value = key, value
 
 
-def number(lo=-math.inf, hi=math.inf, *, lo_open=False, hi_open=False):
+def number(lo=-math.inf, hi=math.inf, *, lo_open=False, hi_open=False, magnitude=None):
+    """A finite number in [lo, hi] (ends open as told); ``magnitude``: (least, largest) |value|
+    too."""
     def check(value):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise Bad("a number")
         value = float(value)
         low_ok = value > lo if lo_open else value >= lo
         high_ok = value < hi if hi_open else value <= hi
-        if not (math.isfinite(value) and low_ok and high_ok):
+        sized = magnitude is None or magnitude[0] <= abs(value) <= magnitude[1]
+        if not (math.isfinite(value) and low_ok and high_ok and sized):
             left = "(" if lo_open else "["
             right = ")" if hi_open else "]"
-            raise Bad(f"a finite number in {left}{lo:g}, {hi:g}{right}")
+            size = "" if magnitude is None else (f" of magnitude in [{magnitude[0]:g}, "
+                                                 f"{magnitude[1]:g}]")
+            raise Bad(f"a finite number in {left}{lo:g}, {hi:g}{right}{size}")
         return value
 
     return check
+
+
+#: [material] E and density: the solvers work with E = density = 1 and scale their outputs,
+#: so any magnitude up to the largest powers of ten a float holds is accepted (the case-wide
+#: NUMBER_RANGE does not apply to these keys)
+MATERIAL_RANGE = (1e-300, 1e300)
+SCALED_KEYS = (".material.E", ".material.density")
 
 
 def integer(lo, hi):

@@ -33,12 +33,12 @@ BACKENDS = ("auto", "scipy", "pardiso")  # linear solvers: critfric.linsolve.BAC
 
 
 POSITIVE = c.number(0.0, lo_open=True)
+MATERIAL = c.number(0.0, lo_open=True, magnitude=c.MATERIAL_RANGE)  # E, density: solved as 1
 
 #: ``[mesh] grading`` of a sweep that extrapolates (3+ sizes) when the case sets none: the
 #: singular points' share of the h -> 0 error shrinks with g (docs/validation.md: from 0.1
 #: to 0.05, 18% more DOFs, inclined-body Q1 limits 2.1e-6 -> 9.0e-7 off the reference)
 SWEEP_GRADING = 0.05
-
 LOAD = {
     "friction": c.Key(c.number(0.0), None, "friction coefficient of the static problem (2.8)"),
     "traction": c.Key(c.table_of(c.vector, "[tx, ty]"), None,
@@ -80,9 +80,9 @@ SCHEMA: dict[str, dict[str, c.Key]] = {
         "dirichlet": c.Key(c.names, ["top"], "clamped edges Gamma_D (at least one)"),
     },
     "material": {
-        "E": c.Key(POSITIVE, 1.0, "Young modulus (the eigenvalues do not depend on it)"),
+        "E": c.Key(MATERIAL, 1.0, "Young modulus (no friction value depends on it)"),
         "nu": c.Key(c.number(0.0, 0.5, hi_open=True), 0.3, "Poisson ratio in [0, 0.5)"),
-        "density": c.Key(POSITIVE, 1.0, "mass density rho (critfric stability: frequencies "
+        "density": c.Key(MATERIAL, 1.0, "mass density rho (critfric stability: frequencies "
                          "scale as sqrt(E / rho); thresholds do not depend on it)"),
     },
     "mesh": {
@@ -308,8 +308,8 @@ def _check_numbers(value, source: str, key: str, depth: int = 0) -> None:
     elif isinstance(value, int) and abs(value) >= 2**63:
         raise CaseError(f"got an integer of {len(str(abs(value)))} digits; allowed: integers "
                         "below 2^63", file=source, key=key.lstrip("."))
-    elif isinstance(value, float) and math.isfinite(value) and value != 0 and not (
-            NUMBER_RANGE[0] <= abs(value) <= NUMBER_RANGE[1]):
+    elif isinstance(value, float) and value != 0 and key not in c.SCALED_KEYS and not (
+            NUMBER_RANGE[0] <= abs(value) <= NUMBER_RANGE[1] or not math.isfinite(value)):
         raise CaseError(f"got {value:g}; allowed: numbers of magnitude in [{NUMBER_RANGE[0]:g}, "
                         f"{NUMBER_RANGE[1]:g}] (or 0)", file=source, key=key.lstrip("."))
 

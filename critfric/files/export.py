@@ -130,10 +130,11 @@ def mode_fields(data: SolveData, mode: dict) -> dict[str, np.ndarray]:
     phi = np.asarray(mode["phi"], dtype=float)
     peak = np.max(np.linalg.norm(phi, axis=1))
     phi = phi / peak if peak > 0 else phi
-    lam, G = data.lame
-    mesh = data.mesh
-    centre = cell_stress(mesh, phi.ravel(), lam, G, at="centroid")[:, 0, :]
-    at_nodes = von_mises(cell_stress(mesh, phi.ravel(), lam, G, at="nodes"))  # (n_cells, nl)
+    E, (lam, G) = float(data.attrs["E"]), lame(1.0, float(data.attrs["nu"]))
+    mesh = data.mesh  # stresses at E = 1, then scaled (squares of E = 1e300 would overflow)
+    unit = cell_stress(mesh, phi.ravel(), lam, G, at="centroid")[:, 0, :]
+    centre = E * unit
+    at_nodes = E * von_mises(cell_stress(mesh, phi.ravel(), lam, G, at="nodes"))  # (n_cells, nl)
     cells = np.asarray(mesh.cells)
     total = np.bincount(cells.ravel(), weights=at_nodes.ravel(), minlength=mesh.n_nodes)
     count = np.bincount(cells.ravel(), minlength=mesh.n_nodes)
@@ -141,7 +142,7 @@ def mode_fields(data: SolveData, mode: dict) -> dict[str, np.ndarray]:
     scale = 1.0 / peak if peak > 0 else 1.0
     force[data.contact_nodes] = scale * (np.outer(mode["theta_n"], data.normal)
                                          + mode["theta_t"][:, None] * data.contact_directions())
-    return {"phi": phi, "stress": centre, "von_mises_cell": von_mises(centre),
+    return {"phi": phi, "stress": centre, "von_mises_cell": E * von_mises(unit),
             "von_mises_node": total / np.maximum(count, 1), "contact_force": force}
 
 

@@ -255,9 +255,9 @@ class State:
             U1 = None if self._U1 is None else self._U1.T
             linear = lambda f: cz.slack(self.code, f, self.Z1.T, u0=np.zeros_like(z0),
                                         Ur=np.zeros(cz.p), uc=U1).T
-            P = linear(0.0)
-            self._rows = (a, cz.slack(self.code, 1.0, z0, u0=u0) - a, P, linear(1.0) - P,
-                          self.Ft(z0))
+            P = linear(0.0)  # y in units of F: the pencils' entries are then all O(1)
+            self._rows = (a, cz.slack(self.code, 1.0, z0, u0=u0) - a, cz.F * P,
+                          cz.F * (linear(1.0) - P), self.Ft(z0) / cz.F)
         return self._rows
 
     def _g(self, f, parts):

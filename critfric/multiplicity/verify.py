@@ -166,7 +166,7 @@ def _critical(prep, case: Case):
     """The lowest positive critical coefficient (gamma = +1) or, if none, the lowest for
     gamma = -1, with its eigenfunction."""
     s = case.solve
-    lam, G = lame(case.material["E"], case.material["nu"])
+    lam, G = lame(1.0, case.material["nu"])  # E = 1: see branch()
     K = prep.system.stiffness(lam, G)
     spec = eigen.solve(K, prep.system, ContactState.all_slipping(prep.system.n_contact, 1),
                        method=s["method"], count=1, shift=s["shift"], tol=s["tol"],
@@ -209,7 +209,10 @@ def branch(case: Case | str | Path, *, friction: float | None = None, mode=None,
     gamma = gamma or 1
     alpha = abs(mode.alpha)
     friction = alpha if friction is None else float(friction)
-    cons = construction(prep.system, case.material["E"], case.material["nu"], friction,
+    # the construction at E = 1: delta0, the residuals and the verdict do not depend on E,
+    # the forces of its points scale with it
+    E = case.material["E"]
+    cons = construction(prep.system, 1.0, case.material["nu"], friction,
                         case.boundary["contact"], case.boundary["dirichlet"], gamma=gamma,
                         slip=slip)
     problem, sys_ = cons.problem, prep.system
@@ -238,7 +241,7 @@ def branch(case: Case | str | Path, *, friction: float | None = None, mode=None,
         res.update({k: float(v) for k, v in violations(
             Un, Ut, X, Y, problem.reference, friction, force_scale=F, disp_scale=D).items()})
         res["newton"] = comp.residual(np.concatenate([Un, Ut]))
-        points.append(BranchPoint(float(delta), Un, Ut, X, Y, res))
+        points.append(BranchPoint(float(delta), Un, Ut, E * X, E * Y, res))
     node = int(np.argmax(np.abs(phi_t)))
     return Branch(friction, float(mode.alpha), gamma, delta0, tuple(sides), points, node, cons,
                   mode, (cond, u0))

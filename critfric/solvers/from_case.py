@@ -16,6 +16,7 @@ from .coulomb import solve as coulomb_solve
 from .eigen import ContactState
 
 NODE_TOL = 1e-9  # a point force `at` [x, y] matches a node within NODE_TOL * mesh diameter
+COMPLIANCE_RANGE = (1e-250, 1e250)  # |nodal force| / E: displacements stay normal floats
 RULE_TOL = 1e-9  # [contact] intervals are widened by RULE_TOL * length of Gamma_C
 
 
@@ -147,6 +148,7 @@ def case_problem(case: Case, system: ContactSystem, *, friction: float | None = 
                             "allowed: a node that is not clamped", file=case.source,
                             key=f"{key}.points.{i}")
         force[2 * node: 2 * node + 2] += point["force"]
+    _check_compliance(force, case.material["E"], case.source, key)
     reference = load["reference"]
     if isinstance(reference, list) and len(reference) != system.n_contact:
         raise CaseError(f"got {len(reference)} values for {system.n_contact} contact nodes; "
@@ -155,6 +157,20 @@ def case_problem(case: Case, system: ContactSystem, *, friction: float | None = 
     friction = load["friction"] if friction is None else friction
     return build(system, lam, G, load_xy=force, reference=reference, friction=friction,
                  fixed_xy=_dirichlet_values(case, mesh, load["displacement"], key))
+
+
+def _check_compliance(force: np.ndarray, E: float, source: str, key: str) -> None:
+    """Refuse forces whose displacements (about |nodal force| / E: 1 / E for a unit force)
+    would overflow or fall below the normal floats: the static problem is linear in the
+    forces and in 1 / E, and float arithmetic holds that only within COMPLIANCE_RANGE."""
+    top = float(np.abs(force).max(initial=0.0))
+    ratio = top / E if top else 0.0
+    if top and not COMPLIANCE_RANGE[0] <= ratio <= COMPLIANCE_RANGE[1]:
+        size = f"{ratio:.3g}" if ratio else "below 1e-308"
+        raise CaseError(f"the forces against E = {E:g} give displacements of about {size} "
+                        "(largest nodal force / E), beyond the floats; allowed: "
+                        f"forces and E with a ratio in [{COMPLIANCE_RANGE[0]:g}, "
+                        f"{COMPLIANCE_RANGE[1]:g}]", file=source, key=key)
 
 
 def _node_at(mesh: Mesh, at, source: str, key: str) -> int:

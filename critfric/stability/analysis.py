@@ -9,6 +9,7 @@ static critical coefficients, computed by the static eigen stage itself.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -131,8 +132,11 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
     s, st = case.solve, case.stability
     backend = resolve_backend(s["backend"])
     system = prep.system
-    K = system.stiffness(*lame(E, nu))
-    M = system.restrict(assemble_mass(prep.mesh, rho))
+    # solved at E = density = 1 and the body's extent ell = 1 (M / ell^2): the thresholds do
+    # not depend on them, kappa = omega^2 scales as E / (density ell^2)
+    ell = float(np.ptp(prep.mesh.points, axis=0).max())
+    K = system.stiffness(*lame(1.0, nu))
+    M = system.restrict(assemble_mass(prep.mesh, 1.0)) / ell**2
     state = contact_state(case, system) or ContactState.all_slipping(system.n_contact,
                                                                      s["gamma"])
     pencil = sliding_pencil(system, K, M, state)
@@ -160,6 +164,7 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
     if np.any(red.omega2[:modes] <= 0):
         raise SolverError("a free-vibration eigenvalue is not positive: check that the "
                           "Dirichlet edges hold the body")
+    scale = _kappa_scale(E, rho, ell, float(red.omega2[modes - 1]), case.source)
     lo, hi = st["friction"] or _default_range(divergence)
     t3 = time.perf_counter()
     flutter, flutter_kappa, shapes, steps, parts = {}, {}, {}, {}, []
@@ -182,7 +187,8 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
             warnings.append(f"the {direction} flutter onset moved from {guess.friction:.6g} "
                             f"(reduced model) to {found.friction:.6g} on the full pencil; "
                             "check with more --steps")
-        flutter[direction], flutter_kappa[direction] = float(found.friction), float(found.kappa)
+        flutter[direction] = float(found.friction)
+        flutter_kappa[direction] = float(found.kappa) * scale
         shapes[direction] = pencil.shape_xy(found.right)
         steps[direction] = found.steps
     t4 = time.perf_counter()
@@ -190,12 +196,25 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
     timings = dict(prep.seconds, mass=t1 - t0, static=t2 - t1, modes=t3 - t2, branches=t4 - t3)
     return StabilityResult(
         case=case, flutter=flutter, flutter_kappa=flutter_kappa, divergence=divergence,
-        frequencies=np.sqrt(red.omega2[:modes]), friction=friction, kappa=kappa,
+        frequencies=np.sqrt(red.omega2[:modes]) * (math.sqrt(E) / math.sqrt(rho) / ell),
+        friction=friction, kappa=kappa * scale,
         flutter_modes=shapes, mesh=prep.mesh, contact_nodes=system.nodes,
         normal=system.normal, n_dofs=system.n_dofs, nu=nu, E=E, density=rho,
         element=case.mesh["element"], size=case.mesh["size"], h=prep.mesh.diameter,
         backend=backend, seconds=sum(timings.values()), timings=timings, newton_steps=steps,
         warnings=warnings, notes=notes)
+
+
+def _kappa_scale(E: float, density: float, ell: float, top: float, source: str) -> float:
+    """E / (density ell^2), the factor of kappa = omega^2 (``top``: the largest kappa
+    followed, at E = density = ell = 1); CaseError where kappa leaves the normal floats."""
+    scale = E / density / ell**2
+    if not (1e-300 <= scale and math.isfinite(scale * top * 1e6)):
+        raise CaseError(f"E / density = {E:g} / {density:g} on a body of extent {ell:g} puts "
+                        f"the squared frequencies (kappa, {top:.3g} at E = density = extent = "
+                        "1) beyond the floats; allowed: E and density nearer each other",
+                        file=source, key="material.density")
+    return scale
 
 
 def _default_range(divergence: dict) -> tuple[float, float]:
