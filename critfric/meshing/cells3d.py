@@ -23,6 +23,7 @@ import numpy as np
 from ..errors import CaseError
 from ..fem.elements import get_element
 from ..fem.mesh import Mesh, orient
+from .overlap import check_tiling_3d
 
 
 @dataclass(frozen=True)
@@ -217,6 +218,7 @@ def check_cells(points: np.ndarray, cells: np.ndarray, spec: Solid, key: str, *,
                         f"nodes {cells[i].tolist()}): its stiffness would be singular to "
                         f"rounding; allowed: cells with volume / longest edge^3 >= "
                         f"{min_quality:g}", key=key)
+    check_tiling_3d(points, cells, spec.faces, key)  # repeated, folded or overlapping cells
     _, count = face_ids(cells, spec)
     if np.any(count > 2):
         raise CaseError("a face is shared by more than two cells", key=key)

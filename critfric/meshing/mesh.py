@@ -13,6 +13,7 @@ from ..fem.elements import get_element
 from ..fem.mesh import Mesh, orient
 from .cells3d import index_array as _index_array
 from .geometry import Polygon, positive_number, validate
+from .overlap import check_tiling_2d
 from .refine import renumber, second_order, split
 from .singular import singular_points, split_at_junctions
 
@@ -302,6 +303,7 @@ def inline_mesh(nodes, cells, edges: dict, element: str) -> Mesh:
     keys = directed.min(axis=1) * n + directed.max(axis=1)
     ukeys, first, inverse, count = np.unique(keys, return_index=True, return_inverse=True,
                                              return_counts=True)
+    check_tiling_2d(points, cells, ckey)  # repeated, folded or overlapping cells
     if np.any(count > 2):
         raise CaseError("an edge is shared by more than two cells", key=ckey)
     order2 = spec.order == 2

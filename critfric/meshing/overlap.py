@@ -1,0 +1,202 @@
+"""Do a mesh's cells tile a body, without overlap? Checks of meshes read from files or given
+inline, after each cell is oriented (counterclockwise, positive volume).
+
+A cell may be numbered in either orientation (the numbering is not geometry: each is
+reoriented), but the cells must not fold over each other or overlap. Refused, with the cell
+indices (in the order the cells were given) named:
+
+* repeated cells (the same node set twice);
+* a fold: two cells on the same side of their shared edge (2D) or face (3D), which is what
+  an inverted cell or an overlapping neighbour gives (both run the shared edge or face in the
+  same direction once oriented);
+* overlap across the boundary (2D): two boundary edges that cross, or a point just inside a
+  boundary edge that the boundary winds around more than once (a second copy of the body on
+  top of the first, a mesh inside another's cells, two meshes overlapping). With neither, the
+  boundary edges enclose exactly the cells: the sum of the cells' areas is the area the
+  boundary encloses;
+* overlap across the boundary (3D): a point just inside one face of each connected piece of
+  the boundary around which the boundary's solid angle is more than 4 pi (a second copy, a
+  body inside another). Surfaces of two bodies that cut through each other are not tested
+  face against face.
+
+The tests are vectorized; the boundary ones cost (boundary facets)^2 / CHUNK numpy passes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import CaseError
+
+CHUNK = 1 << 20  # pairs of (point or edge, edge) per numpy pass
+INSIDE = 1e-9  # the test points: this fraction of a facet's size inside it
+
+
+def _duplicates(rows: np.ndarray, key: str, what: str) -> None:
+    s = np.sort(rows, axis=1)
+    order = np.lexsort(s.T[::-1])
+    same = np.flatnonzero(np.all(s[order[1:]] == s[order[:-1]], axis=1))
+    if len(same):
+        i, j = sorted(int(x) for x in order[[same[0], same[0] + 1]])
+        raise CaseError(f"cells {i} and {j} are the same {what} (nodes {rows[j].tolist()}); "
+                        "allowed: each cell once", key=key)
+
+
+def _fold(directed: np.ndarray, width: int, key: str, what: str) -> None:
+    """``directed`` (n_cells * per-cell, k): the cells' oriented edges (faces); a fold where
+    two occurrences of one edge (face) have the same direction."""
+    k = directed.shape[1]
+    start = np.argmin(directed, axis=1)  # each row rotated to start at its smallest node
+    rot = directed[np.arange(len(directed))[:, None], (start[:, None] + np.arange(k)) % k]
+    sense = rot[:, 1] < rot[:, -1] if k > 2 else rot[:, 0] == directed[:, 0]
+    key_rows = np.sort(directed, axis=1)
+    rows = np.concatenate([key_rows, sense[:, None].astype(key_rows.dtype)], axis=1)
+    order = np.lexsort(rows.T[::-1])
+    ranked = rows[order]
+    same = np.flatnonzero(np.all(ranked[1:] == ranked[:-1], axis=1))
+    if len(same):
+        i, j = sorted(int(x) // width for x in order[[same[0], same[0] + 1]])
+        raise CaseError(f"cells {i} and {j} overlap: they lie on the same side of their shared "
+                        f"{what} {key_rows[order[same[0]]].tolist()} (a cell inverted or folded "
+                        "over its neighbour); allowed: cells that tile the body", key=key)
+
+
+def check_tiling_2d(points: np.ndarray, cells: np.ndarray, key: str) -> None:
+    """``cells`` (n, 3 or 4) counterclockwise; CaseError naming ``key`` and the cells."""
+    nv = cells.shape[1]
+    _duplicates(cells, key, "triangle" if nv == 3 else "quadrangle")
+    directed = np.stack([cells, np.roll(cells, -1, axis=1)], axis=-1).reshape(-1, 2)
+    _fold(directed, nv, key, "edge")
+    lo, hi = directed.min(axis=1), directed.max(axis=1)
+    _, inverse, count = np.unique(lo * len(points) + hi, return_inverse=True,
+                                  return_counts=True)
+    boundary = np.flatnonzero(count[inverse.ravel()] == 1)
+    a, b = points[directed[boundary, 0]], points[directed[boundary, 1]]
+    owner = boundary // nv
+    crossing = _crossing(a, b, directed[boundary])
+    if crossing is not None:
+        i, j = sorted(int(owner[x]) for x in crossing)
+        raise CaseError(f"cells {i} and {j} overlap: their boundary edges cross; allowed: "
+                        "cells that tile the body", key=key)
+    d = b - a
+    inside = 0.5 * (a + b) + INSIDE * np.column_stack([-d[:, 1], d[:, 0]])
+    winding = _winding(inside, a, b)
+    if np.any(winding != 1):
+        e = int(np.argmax(winding != 1))
+        over = _containing(points, cells, inside[e])
+        shown = sorted(set(over.tolist()) | {int(owner[e])})
+        raise CaseError(f"cells {', '.join(map(str, shown[:-1]))} and {shown[-1]} overlap (the "
+                        f"point {inside[e].round(12).tolist()} is in {int(winding[e])} cells; "
+                        "the cells' areas add up to more than the area their boundary "
+                        "encloses); allowed: cells that tile the body" if len(shown) > 1 else
+                        f"cell {shown[0]} lies over another part of the body; allowed: cells "
+                        "that tile the body", key=key)
+
+
+def _pairs(n: int, m: int):
+    """Chunks of (rows, columns) index ranges covering an n x m table, CHUNK pairs each."""
+    step = max(1, CHUNK // max(m, 1))
+    for start in range(0, n, step):
+        yield slice(start, min(start + step, n))
+
+
+def _crossing(a: np.ndarray, b: np.ndarray, nodes: np.ndarray):
+    """The first pair (i, j) of segments a_i b_i, a_j b_j that cross at a point inside both
+    (not at an end), or None."""
+    scale = float(np.ptp(np.concatenate([a, b]), axis=0).max()) if len(a) else 0.0
+    tol = 1e-12 * scale * scale
+    d = b - a
+
+    def side(p, q, dp, r):  # sign of (q - p) x (r - p) for rows p (k,1,2) and r (1,m,2)
+        v = (dp[..., 0] * (r[..., 1] - p[..., 1]) - dp[..., 1] * (r[..., 0] - p[..., 0]))
+        return np.where(np.abs(v) <= tol, 0.0, np.sign(v))
+
+    for rows in _pairs(len(a), len(a)):
+        p, q, dp = a[rows, None], b[rows, None], d[rows, None]
+        o1, o2 = side(p, q, dp, a[None]), side(p, q, dp, b[None])
+        o3 = side(a[None], b[None], d[None], p)
+        o4 = side(a[None], b[None], d[None], q)
+        hit = (o1 * o2 < 0) & (o3 * o4 < 0)
+        hit &= ~(nodes[rows, None, :, None] == nodes[None, :, None, :]).any(axis=(-1, -2))
+        if hit.any():
+            i, j = np.unravel_index(int(np.argmax(hit)), hit.shape)
+            return int(rows.start + i), int(j)
+    return None
+
+
+def _winding(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Winding numbers of the closed directed edges a -> b around the points ``p``."""
+    out = np.zeros(len(p), dtype=np.int64)
+    for rows in _pairs(len(p), len(a)):
+        x, y = p[rows, 0, None], p[rows, 1, None]
+        cross = (b[:, 0] - a[:, 0]) * (y - a[:, 1]) - (b[:, 1] - a[:, 1]) * (x - a[:, 0])
+        up = (a[:, 1] <= y) & (b[:, 1] > y) & (cross > 0)
+        down = (b[:, 1] <= y) & (a[:, 1] > y) & (cross < 0)
+        out[rows] = up.sum(axis=1) - down.sum(axis=1)
+    return out
+
+
+def _containing(points: np.ndarray, cells: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Indices of the (counterclockwise, convex) cells that contain the point ``p``."""
+    v = points[cells]
+    d = np.roll(v, -1, axis=1) - v
+    cross = d[..., 0] * (p[1] - v[..., 1]) - d[..., 1] * (p[0] - v[..., 0])
+    return np.flatnonzero(np.all(cross > 0, axis=1))
+
+
+# ------------------------------------------------------------------------------------- 3D
+def check_tiling_3d(points: np.ndarray, cells: np.ndarray, faces: np.ndarray,
+                    key: str) -> None:
+    """``cells`` (n, 4 or 8) of positive volume with their outward ``faces`` (local vertex
+    lists, (n_faces, 3 or 4)); CaseError naming ``key`` and the cells."""
+    nf = len(faces)
+    _duplicates(cells, key, "tetrahedron" if cells.shape[1] == 4 else "hexahedron")
+    directed = cells[:, faces].reshape(-1, faces.shape[1])
+    _fold(directed, nf, key, "face")
+    s = np.sort(directed, axis=1)
+    _, inverse, count = np.unique(s, axis=0, return_inverse=True, return_counts=True)
+    boundary = np.flatnonzero(count[inverse.ravel()] == 1)
+    tri = directed[boundary][:, [0, 1, 2]]
+    if directed.shape[1] == 4:
+        tri = np.concatenate([tri, directed[boundary][:, [0, 2, 3]]])
+    owner = np.concatenate([boundary, boundary])[:len(tri)] // nf
+    x = points[tri]
+    normal = np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0])
+    size = np.sqrt(np.linalg.norm(normal, axis=1))[:, None]
+    inside = x.mean(axis=1) - INSIDE * size * normal / np.maximum(size**2, 1e-300)
+    picked = _one_per_piece(tri, len(points))
+    turns = _solid_angles(inside[picked], x) / (4 * np.pi)
+    bad = np.abs(turns - 1) > 0.5
+    if bad.any():
+        f = int(picked[int(np.argmax(bad))])
+        raise CaseError(f"cell {int(owner[f])} lies inside another part of the body (the point "
+                        f"{inside[f].round(12).tolist()} is inside {turns[np.argmax(bad)]:.0f} "
+                        "closed boundaries: a second copy of the body, or a body inside "
+                        "another); allowed: cells that tile the body", key=key)
+
+
+def _one_per_piece(tri: np.ndarray, n: int) -> np.ndarray:
+    """One boundary triangle of each connected piece of the boundary surface."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rows = np.repeat(np.arange(len(tri)), 3)
+    graph = coo_matrix((np.ones(len(rows)), (rows, tri.ravel())), shape=(len(tri), n)).tocsr()
+    _, label = connected_components(graph @ graph.T, directed=False)
+    return np.unique(label, return_index=True)[1]
+
+
+def _solid_angles(p: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Sum over the triangles ``x`` (m, 3, 3) of their signed solid angles seen from each
+    point of ``p`` (Van Oosterom and Strackee)."""
+    out = np.zeros(len(p))
+    for rows in _pairs(len(p), len(x)):
+        r = x[None] - p[rows, None, None, :]  # (k, m, 3, 3)
+        length = np.linalg.norm(r, axis=-1)
+        a, b, c = r[..., 0, :], r[..., 1, :], r[..., 2, :]
+        det = np.einsum("kmi,kmi->km", a, np.cross(b, c))
+        dot = lambda u, v: np.einsum("kmi,kmi->km", u, v)  # noqa: E731
+        den = (length[..., 0] * length[..., 1] * length[..., 2] + dot(a, b) * length[..., 2]
+               + dot(a, c) * length[..., 1] + dot(b, c) * length[..., 0])
+        out[rows] = 2 * np.arctan2(det, den).sum(axis=1)
+    return out
