@@ -21,6 +21,7 @@ from ..case.schema import (
     load_case,
     shipped_cases,
 )
+from ..case.numbers import plain_number, shown
 from ..errors import CaseError
 from ..fem.elements import NAMES
 from ..files.catalog import static_table
@@ -128,15 +129,12 @@ def _friction_range(text: str | None) -> list[float] | None:
     """--friction A:B -> [A, B] (the schema checks A <= 0 <= B)."""
     if text is None:
         return None
+    allowed = ("A:B, two plain (ASCII) numbers with A <= 0 <= B (e.g. -2:2, or 0:3 for one "
+               "sliding direction)")
     parts = text.split(":")
-    try:
-        if len(parts) != 2:
-            raise ValueError
-        return [float(parts[0]), float(parts[1])]
-    except ValueError:
-        raise CaseError(f"got {text!r}; allowed: A:B, two numbers with A <= 0 <= B "
-                        "(e.g. -2:2, or 0:3 for one sliding direction)",
-                        key="--friction") from None
+    if len(parts) != 2:
+        raise CaseError(f"got {shown(text)}; allowed: {allowed}", key="--friction")
+    return [plain_number(p, "--friction", allowed=allowed) for p in parts]
 
 
 @app.command(epilog="\b\nExamples:\n  critfric stability unit-square --plot\n  critfric stability unit-square --modes 6 --friction 0:1 --json\n  critfric stability inclined-body --size 0.05 -o inclined_stability.h5")
@@ -267,7 +265,7 @@ def sweep(
     estimates; over slip angles, the minimum over directions."""
     with reported("every finished point is kept in the sweep file; run the same command "
                   "again to compute only the rest"):
-        from ..plots.figures import plot_file
+        from ..plots.figures import NothingToDraw, plot_file
         from ..sweep.runner import default_output as sweep_output
         from ..sweep.runner import make_grid, report_sweep, run_sweep
         from .progress import progress_bar
@@ -290,11 +288,13 @@ def sweep(
             result = run_sweep(loaded, grid, output=out, jobs=jobs, scheduler=scheduler,
                                force=force, on_point=point_done, max_dofs=max_dofs,
                                trust_geo=trust_geo)
-        pngs = plot_file(result.path) if plot else []
         typer.echo(json.dumps(result.summary()) if as_json else report_sweep(result))
         say(f"wrote {out}")
-        for png in pngs:
-            say(f"wrote {png}")
+        try:
+            for png in plot_file(result.path) if plot else []:
+                say(f"wrote {png}")
+        except NothingToDraw as exc:  # every point failed: the report said why
+            say(f"critfric: note: no figure: {exc}")
 
 
 @app.command(epilog="\b\nExamples:\n  critfric plot fig5.h5\n  critfric plot inclined_body.h5 --format png,pdf")
@@ -343,12 +343,15 @@ def solutions(
     nodes), by enumeration, over a range of friction values."""
     with reported():
         from ..multiplicity.enumeration import parse_frictions, report_solutions, solutions_of_case
+        from ..plots.saving import check_figure_paths
         from ..plots.static import default_plot, solutions_plot
 
         loaded = load_case(case, overrides={"material.nu": nu})
+        png = None if no_plot else plot or default_plot(loaded, "solutions")
+        check_figure_paths([png] if png else [], inputs=loaded.inputs(), key="--plot")
         sweep = solutions_of_case(loaded, parse_frictions(friction))
-        png = None if no_plot else solutions_plot(
-            sweep, plot or default_plot(loaded, "solutions"), title=loaded.title or "")
+        if png:
+            solutions_plot(sweep, png, title=loaded.title or "")
         typer.echo(json.dumps([e.to_json() for e in sweep]) if as_json
                    else report_solutions(sweep))
         if png:
@@ -373,11 +376,15 @@ def verify(
     with reported():
         from ..multiplicity.verify import report_verification
         from ..multiplicity.verify import verify as run_verify
+        from ..plots.saving import check_figure_paths
         from ..plots.static import branch_plot, default_plot
 
         loaded = load_case(case, overrides={OVERRIDES[k]: v for k, v in given.items()})
+        png = None if no_plot else plot or default_plot(loaded, "verify")
+        check_figure_paths([png] if png else [], inputs=loaded.inputs(), key="--plot")
         result = run_verify(loaded, off=off)
-        png = None if no_plot else branch_plot(result, plot or default_plot(loaded, "verify"))
+        if png:
+            branch_plot(result, png)
         typer.echo(json.dumps(result.summary()) if as_json else report_verification(result))
         if png:
             say(f"wrote {png}")

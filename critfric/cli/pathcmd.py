@@ -10,6 +10,7 @@ from pathlib import Path
 import typer
 
 from ..case.schema import OVERRIDES, load_case
+from ..case.numbers import plain_number, shown
 from ..errors import CaseError
 from ..fem.elements import NAMES
 from .common import MaxDofs, TrustGeo, app, computed_and_written, figures_and_notes, fmt_values
@@ -27,12 +28,9 @@ def parse_range(text: str | None) -> list[float] | None:
     if text is None:
         return None
     parts = text.split(":")
-    try:
-        if len(parts) != 2 or not text.isascii():  # float() reads full-width digits too
-            raise ValueError
-        return [float(p) for p in parts]
-    except ValueError:
-        raise CaseError(f"got {text!r}; allowed: {RANGE_ALLOWED}", key="--range") from None
+    if len(parts) != 2:
+        raise CaseError(f"got {shown(text)}; allowed: {RANGE_ALLOWED}", key="--range")
+    return [plain_number(p, "--range", allowed=RANGE_ALLOWED) for p in parts]
 
 
 def _seed(seed) -> str:

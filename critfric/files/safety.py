@@ -154,9 +154,11 @@ def output_lock(path: Path | str):
         os.close(fd)
 
 
-def check_output(path: Path, *, force: bool = False, inputs=()) -> Path:
-    """Refuse an output path that cannot be written, or that is one of the ``inputs`` (even
-    under another name or through a link), before any work is done."""
+def check_output(path: Path, *, force: bool = False, inputs=(),
+                 key: str | None = "output.file") -> Path:
+    """Refuse an output path that cannot be written, that is one of the ``inputs`` (even
+    under another name or through a link) or that is a symbolic link (never written through,
+    never replaced), before any work is done; ``key`` is what the error names."""
     path = Path(path)
     for given in inputs:
         try:
@@ -165,7 +167,14 @@ def check_output(path: Path, *, force: bool = False, inputs=()) -> Path:
             same = False
         if same:
             raise CaseError(f"is an input of this command ({given}); allowed: an output that "
-                            "is not one of its inputs", file=str(path), key="output.file")
+                            "is not one of its inputs", file=str(path), key=key)
+    try:
+        link = os.path.islink(path)
+    except ValueError:  # a NUL in the name: refused below
+        link = False
+    if link:
+        raise CaseError("is a symbolic link; allowed: a path that is not a link (critfric "
+                        "never writes through one)", file=str(path), key=key)
     try:
         os.stat(path)
     except FileNotFoundError:
@@ -173,22 +182,22 @@ def check_output(path: Path, *, force: bool = False, inputs=()) -> Path:
     except (OSError, ValueError) as exc:  # name too long, a file used as a directory, NUL
         why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         raise CaseError(f"cannot write this path ({why}); allowed: a file path in an existing "
-                        "writable directory", file=str(path), key="output.file") from None
+                        "writable directory", file=str(path), key=key) from None
     if path.is_dir():
-        raise CaseError("is a directory; allowed: a file path for the HDF5 result",
-                        file=str(path), key="output.file")
+        raise CaseError("is a directory; allowed: a file path",
+                        file=str(path), key=key)
     if path.exists() and not force:
         raise CaseError("exists already; pass --force to overwrite it", file=str(path),
-                        key="output.file")
+                        key=key)
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
         raise CaseError(f"cannot write here: directory {str(parent)!r} does not exist; "
                         "allowed: a file in an existing writable directory", file=str(path),
-                        key="output.file")
+                        key=key)
     if not os.access(parent, os.W_OK):
         raise CaseError(f"cannot write here: directory {str(parent)!r} is not writable; "
                         "allowed: a file in an existing writable directory", file=str(path),
-                        key="output.file")
+                        key=key)
     return path
 
 
@@ -218,16 +227,18 @@ def atomic_h5(path: Path, fill) -> Path:
 
 
 @contextmanager
-def staged(paths: list[Path]):
+def staged(paths: list[Path], *, key: str | None = "output.file"):
     """Yield temporary paths (same names, in a private directory beside the first target)
-    to write; on success rename each over its target, else remove them all."""
+    to write; on success rename each over its target, else remove them all. A directory
+    that cannot be written is a :class:`CaseError` naming ``key``."""
     paths = [Path(p) for p in paths]
     parent = paths[0].parent if str(paths[0].parent) else Path(".")
     try:
         tmp = Path(tempfile.mkdtemp(prefix=".critfric-", dir=parent))
     except OSError as exc:
-        raise CaseError(f"cannot write in this directory ({exc.strerror})",
-                        file=str(paths[0]), key="output.file") from None
+        raise CaseError(f"cannot write in directory {str(parent)!r} ({exc.strerror}); "
+                        "allowed: a file in an existing writable directory",
+                        file=str(paths[0]), key=key) from None
     try:
         yield [tmp / p.name for p in paths]
         for p in paths:

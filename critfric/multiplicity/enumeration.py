@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linprog
 
+from ..case.numbers import plain_integer, plain_number, shown
 from ..errors import CaseError, SolverError
 from ..fem.static import StaticProblem
 from ..solvers.coulomb import violations
@@ -279,19 +280,16 @@ def enumerate_solutions(problem: StaticProblem, frictions) -> list[Enumeration]:
 def parse_frictions(text: str) -> np.ndarray:
     """'a:b:N' (N values from a to b) or one value -> friction values (CaseError if bad)."""
 
+    allowed = ("a:b:N (N >= 1 values from a to b, a, b >= 0) or one value >= 0, in plain "
+               "(ASCII) numbers")
     parts = str(text).split(":")
-    try:
-        if len(parts) == 1:
-            values = np.array([float(parts[0])])
-        elif len(parts) == 3 and int(parts[2]) >= 1 and str(int(parts[2])) == parts[2].strip():
-            values = np.linspace(float(parts[0]), float(parts[1]), int(parts[2]))
-        else:
-            raise ValueError
-    except ValueError:
-        values = np.array([np.nan])
-    if not np.all(np.isfinite(values) & (values >= 0)):
-        raise CaseError(f"got {text!r}; allowed: a:b:N (N >= 1 values from a to b, a, b >= 0) "
-                        "or one value >= 0", key="--friction")
+    if len(parts) not in (1, 3):
+        raise CaseError(f"got {shown(text)}; allowed: {allowed}", key="--friction")
+    ends = [plain_number(p, "--friction", allowed=allowed) for p in parts[:2]]
+    n = plain_integer(parts[2], "--friction", allowed=allowed) if len(parts) == 3 else 1
+    values = np.linspace(ends[0], ends[-1], n)
+    if n < 1 or not np.all(np.isfinite(values) & (values >= 0)):
+        raise CaseError(f"got {shown(text)}; allowed: {allowed}", key="--friction")
     return values
 
 

@@ -30,6 +30,7 @@ from ..files.export import SolveData, mode_fields, read_solve
 from ..files.sweepfile import read_sweep
 from .meshdraw import segments as _segments
 from .meshdraw import triangles as _triangles
+from .saving import FORMATS, save_figures
 from .solid import contact_figures
 
 DPI = 150
@@ -48,10 +49,10 @@ def plot_file(path: Path | str, *, nu: float | None = None,
         raise CaseError(f"got {','.join(formats)}; allowed: a comma list of "
                         + ", ".join(FORMATS), key="--format")
 
-    out = []
-    for name, fig in figures(path, nu=nu).items():
-        out += _save(fig, path.with_name(f"{path.stem}_{name}"), formats)
-    return out
+    drawn = figures(path, nu=nu)
+    items = [(fig, path.with_name(f"{path.stem}_{name}.{fmt}")) for name, fig in drawn.items()
+             for fmt in formats]
+    return save_figures(items, inputs=[path], dpi=DPI, bbox_inches="tight")
 
 
 def figures(path: Path | str, *, nu: float | None = None) -> dict[str, Figure]:
@@ -79,18 +80,7 @@ def figures(path: Path | str, *, nu: float | None = None) -> dict[str, Figure]:
                     file=str(path))
 
 
-FORMATS = ("png", "pdf", "svg")
 WIREFRAME_CELLS = 3000  # above this, a deformed mesh is drawn as colour, not as wires
-
-
-def _save(fig: Figure, path: Path, formats) -> list[Path]:
-    """Write ``fig`` as ``path`` in each of ``formats``; the paths written."""
-    out = []
-    for fmt in formats:
-        target = path.with_suffix(f".{fmt}")
-        fig.savefig(target, dpi=DPI, bbox_inches="tight")
-        out.append(target)
-    return out
 
 
 # ------------------------------------------------------------------------------ sweeps
@@ -105,18 +95,49 @@ def sweep_figures(path: Path, *, nu: float | None = None) -> dict[str, Figure]:
     title = f"{data['attrs'].get('case_name', '')}"
     if json.loads(data["attrs"]["grid"]).get("quantity") == "flutter":
         title += ": FLUTTER thresholds of steady sliding (critfric stability), not static"
+    _check_drawable(path, rows, limits, data.get("minima", []))
     if json.loads(data["attrs"]["grid"]).get("slip_angle") is not None:  # over directions
         from .polar import directions_figures
 
         return directions_figures(data, title)
     out = {"critical": _critical_vs_nu(rows, limits, title)}
-    if len({r["size"] for r in rows if r["size"] is not None}) >= 2:
+    sized = [r for r in rows if r["size"] is not None]
+    if len({r["size"] for r in sized}) >= 2 and any(
+            math.isfinite(_value(r, "positive")) for r in sized):
         out["convergence"] = _convergence(rows, limits, title, nu)
     return out
 
 
+class NothingToDraw(CaseError):
+    """A file that holds no value a figure could show (no point, or every one failed or
+    without a value): said instead of drawing empty axes."""
+
+
+def _check_drawable(path: Path, rows, limits, minima) -> None:
+    """Raise :class:`NothingToDraw` unless a point, a limit or a minimum has a finite value."""
+    finite = lambda v: v is not None and math.isfinite(v)
+    if any(finite(_value(r, f)) for r in rows for f in ("positive", "negative")) or any(
+            lim["status"] == "ok" and finite(lim["limit"]) for lim in limits) or any(
+            finite(m["positive"]) for m in minima):
+        return
+    if not rows:
+        raise NothingToDraw("holds no finished point yet (a sweep resumes with the same "
+                            "command); nothing to draw, no figure written", file=str(path))
+    failed = [r["status"] for r in rows if r["status"].startswith("failed")]
+    first = f" (the first: {shorten(failed[0], 100, placeholder='...')})" if failed else ""
+    raise NothingToDraw(f"has no value to draw: of its {len(rows)} points, {len(failed)} "
+                        f"failed{first} and {len(rows) - len(failed)} have no real value "
+                        "(status in `critfric table`); no figure written", file=str(path))
+
+
 def _value(row: dict, family: str) -> float:
     return row[family][0] if row["status"] == "ok" and row[family] else math.nan
+
+
+def _legend(ax, **kw) -> None:
+    """A legend if the axes have labelled artists (matplotlib warns otherwise)."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(**kw)
 
 
 def _critical_vs_nu(rows, limits, title) -> Figure:
@@ -151,6 +172,9 @@ def _critical_vs_nu(rows, limits, title) -> Figure:
             shown = ", ".join(f"{v:g}" for v in missing[:6]) + (", ..." if len(missing) > 6
                                                                  else "")
             notes.append(f"no real {family} eigenvalue found at ν = {shown}")
+        failed = sum(r["status"].startswith("failed") for r in rows)
+        if failed:
+            notes.append(f"{failed} of {len(rows)} points failed: left out")
         if notes:
             ax.text(0.02, 0.02, "\n".join(notes), transform=ax.transAxes, fontsize=8)
         ax.set_xlabel(r"Poisson ratio $\nu$")
@@ -159,7 +183,7 @@ def _critical_vs_nu(rows, limits, title) -> Figure:
         ax.set_ylabel(f"{ALPHA_LABEL}\n({what})")
         ax.set_title(f"{title}: {what} vs ν")
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
+        _legend(ax, fontsize=8)
     fig.tight_layout()
     return fig
 
@@ -204,8 +228,9 @@ def _convergence(rows, limits, title, nu) -> Figure:
                      label=f"{el}: h → 0 limit {lim['limit']:.6f} ± {lim['error']:.1e}")
         err = np.abs(y - lim["limit"])
         ok = np.isfinite(err) & (err > 0)
-        axes[1].plot(h[ok], err[ok], marker=marker, color=color,
-                     label=f"{el}: observed order p = {lim['order']:.2f}")
+        if ok.any():  # none: every value equals the limit (or is missing)
+            axes[1].plot(h[ok], err[ok], marker=marker, color=color,
+                         label=f"{el}: observed order p = {lim['order']:.2f}")
     for ax in axes:
         ax.set_xscale("log")
         ax.set_xticks(sizes, [f"{v:g}" for v in sizes])
@@ -213,11 +238,16 @@ def _convergence(rows, limits, title, nu) -> Figure:
         ax.invert_xaxis()
         ax.set_xlabel("mesh size h (case length units)")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
+        _legend(ax, fontsize=8)
     left.set_ylabel(f"{ALPHA_LABEL}\n(lowest positive eigenvalue)")
     left.set_title(f"{title}: convergence at ν = {nu:g}")
-    if with_limit:
+    if with_limit and axes[1].lines:
         axes[1].set_yscale("log")
+    elif with_limit:
+        axes[1].set_xlim(left.get_xlim())
+        axes[1].text(0.5, 0.5, "no distance to draw: every computed value equals its limit "
+                     "or is missing", transform=axes[1].transAxes, ha="center", fontsize=8)
+    if with_limit:
         axes[1].set_ylabel(r"$|\mu_{\rm cr}(h) - \mu_{\rm cr}(h \to 0)|$")
         axes[1].set_title("distance to the extrapolated limit (log-log)")
     fig.tight_layout()

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .saving import save_figures
+
 
 def _figure():
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -45,8 +47,7 @@ def solutions_plot(sweep, path: Path | str, *, title: str = "") -> Path:
                  + (f"\n{title}" if title else ""), fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
-    return Path(path)
+    return save_figures([(fig, Path(path))], key="--plot", dpi=120, bbox_inches="tight")[0]
 
 
 def branch_plot(verification, path: Path | str, *, title: str = "") -> Path:
@@ -71,8 +72,7 @@ def branch_plot(verification, path: Path | str, *, title: str = "") -> Path:
                  f"{'passed' if verification.passed else 'FAILED'}")
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=8)
-    fig.savefig(path, dpi=120)
-    return Path(path)
+    return save_figures([(fig, Path(path))], key="--plot", dpi=120)[0]
 
 
 def default_plot(case, kind: str) -> Path:

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..case.numbers import PLAIN_NUMBER, plain_integer, plain_number
 from ..errors import CaseError
 from ..fem.elements import NAMES
 
@@ -77,13 +78,8 @@ class Grid:
 
 
 def _float(text: str, what: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise CaseError(f"got {text!r}; allowed: a number", key=what) from None
-    if not math.isfinite(value):
-        raise CaseError(f"got {text!r}; allowed: a finite number", key=what)
-    return value
+    """A plain finite number (:func:`critfric.case.numbers.plain_number`)."""
+    return plain_number(text, what, allowed="a finite " + PLAIN_NUMBER.removeprefix("a "))
 
 
 def _range(text: str, key: str, allowed: str, default: int) -> tuple[float, float, int]:
@@ -95,11 +91,11 @@ def _range(text: str, key: str, allowed: str, default: int) -> tuple[float, floa
     lo, hi = _float(parts[0], key), _float(parts[1], key)
     if len(parts) == 2:
         return lo, hi, default
-    digits = parts[2].strip()
-    if not digits.isdigit() or len(digits) > 7 or not 2 <= int(digits) <= MAX_POINTS:
-        raise CaseError(f"got N = {parts[2][:20]!r}; allowed: an integer >= 2 and <= "
-                        f"{MAX_POINTS}", key=key)
-    return lo, hi, int(digits)
+    allowed = f"N, an integer >= 2 and <= {MAX_POINTS} in ASCII digits"
+    n = plain_integer(parts[2], key, allowed=allowed)
+    if not 2 <= n <= MAX_POINTS:
+        raise CaseError(f"got N = {parts[2][:20]!r}; allowed: {allowed}", key=key)
+    return lo, hi, n
 
 
 def parse_nu(text: str) -> tuple[list[float], list[str]]:

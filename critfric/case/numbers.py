@@ -1,0 +1,54 @@
+"""Numbers typed as text (ranges and lists on the command line): plain ASCII only.
+
+Python's ``float`` and ``int`` also read full-width and other Unicode digits, ``_``
+separators, ``nan`` and ``inf``; a value that only looks like a number (``０.３``, ``−1``
+with a minus sign that is not ``-``, a superscript ``³``) is refused with the characters
+named, never guessed. Allowed: ASCII digits, ``.``, ``e``/``E``, ``+`` and ``-``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import unicodedata
+
+from ..errors import CaseError
+
+PLAIN_NUMBER = "a plain number: ASCII digits 0-9, '.', 'e', '+', '-' (e.g. 0.25, -2, 1e-3)"
+PLAIN_INTEGER = "a plain integer: ASCII digits 0-9 (e.g. 11)"
+MAX_CHARS = 64  # longer text is no number a user meant
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_INTEGER = re.compile(r"\+?[0-9]+")
+
+
+def shown(text: str) -> str:
+    """``text`` quoted (cut at 40 characters), with its non-ASCII or unprintable characters
+    named: U+2212 MINUS SIGN looks like '-' but is not."""
+    text = str(text)
+    odd = [c for c in dict.fromkeys(text) if not (c.isascii() and c.isprintable())]
+    names = ", ".join(f"U+{ord(c):04X} {unicodedata.name(c, 'unnamed character')}"
+                      for c in odd[:3]) + (", ..." if len(odd) > 3 else "")
+    return repr(text[:40] + ("..." if len(text) > 40 else "")) + (
+        f" (contains {names})" if odd else "")
+
+
+def plain_number(text: str, key: str, *, allowed: str = PLAIN_NUMBER) -> float:
+    """The finite float written as ``text`` (ASCII spaces around it allowed), else a
+    :class:`CaseError` naming ``key``, the value and ``allowed``."""
+    s = str(text).strip(" \t")
+    if len(s) > MAX_CHARS or not _NUMBER.fullmatch(s):
+        raise CaseError(f"got {shown(text)}; allowed: {allowed}", key=key)
+    value = float(s)
+    if not math.isfinite(value):  # 1e999
+        raise CaseError(f"got {shown(text)}, beyond the largest float; allowed: {allowed}",
+                        key=key)
+    return value
+
+
+def plain_integer(text: str, key: str, *, allowed: str = PLAIN_INTEGER) -> int:
+    """The non-negative integer written as ``text`` in ASCII digits, else a
+    :class:`CaseError` naming ``key``, the value and ``allowed``."""
+    s = str(text).strip(" \t")
+    if len(s) > MAX_CHARS or not _INTEGER.fullmatch(s):
+        raise CaseError(f"got {shown(text)}; allowed: {allowed}", key=key)
+    return int(s)
