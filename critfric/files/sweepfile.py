@@ -150,9 +150,9 @@ def _kept(f: h5py.File) -> str:
     """What a sweep file holds, said when a write to it fails."""
     points = len(f["points/status"]) if "points/status" in f else 0
     minima = len(f["minima/status"]) if "minima/status" in f else 0
-    return (f"the file is unchanged, its {points} point{'s' * (points != 1)}"
-            + (f" and {minima} minim{'a' if minima != 1 else 'um'} over directions"
-               if minima else "") + " are safe")
+    what = f"{points} point{'s' * (points != 1)}" + (
+        f" and {minima} minim{'a' if minima != 1 else 'um'} over directions" if minima else "")
+    return f"the file is unchanged, its {what} {'is' if what == '1 point' else 'are'} safe"
 
 
 def _replace(path: Path, data, what: str, kept: str) -> None:
