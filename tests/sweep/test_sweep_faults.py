@@ -75,25 +75,38 @@ def _rows(path):
         return []
 
 
-def test_ctrl_c_with_worker_processes_keeps_every_point_and_resumes_exactly_once(tmp_path):
-    out = tmp_path / "s.h5"
+def _interrupted_sweep(folder) -> tuple[int, str]:
+    """The sweep, sent a Ctrl-C once two points are in its file: (exit code, stderr)."""
+    folder.mkdir()
+    out = folder / "s.h5"
     proc = _cli(*SWEEP, "-o", out)
     try:
         end = time.monotonic() + 120
-        while len(_rows(out)) < 2:
-            assert proc.poll() is None, proc.communicate()[1]
+        while len(_rows(out)) < 2 and proc.poll() is None:
             assert time.monotonic() < end, "no point was finished"
             time.sleep(0.02)
         proc.send_signal(signal.SIGINT)
         _, stderr = proc.communicate(timeout=60)
     finally:
         proc.kill()
-    assert proc.returncode == 130, stderr
+    return proc.returncode, stderr
+
+
+def test_ctrl_c_with_worker_processes_keeps_every_point_and_resumes_exactly_once(tmp_path):
+    # the 24 points take about 0.5 s once the first two are in: on a loaded machine the
+    # interrupt can come after the last one (exit 0, or 130 with every point); the test
+    # then runs again, up to three times (a Ctrl-C that is ignored fails all three)
+    for attempt in range(3):
+        folder = tmp_path / f"try{attempt}"
+        code, stderr = _interrupted_sweep(folder)
+        kept = _rows(folder / "s.h5")
+        if code != 0 and len(kept) < 24:
+            break
+    assert code == 130, stderr
     assert "Traceback" not in stderr and "interrupted" in stderr
-    kept = read_sweep(out)["rows"]
     assert 2 <= len(kept) < 24 and all(r["status"] == "ok" for r in kept)
-    assert [p.name for p in tmp_path.iterdir()] == ["s.h5"]  # no lock, no temporary file
-    _, grid, _, keys = resume_exactly_once(out, "0.02:0.46:24", 24, len(kept))
+    assert [p.name for p in folder.iterdir()] == ["s.h5"]  # no lock, no temporary file
+    _, grid, _, keys = resume_exactly_once(folder / "s.h5", "0.02:0.46:24", 24, len(kept))
     assert sorted(k[2] for k in keys) == grid.nu
 
 
