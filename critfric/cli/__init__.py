@@ -35,10 +35,11 @@ def main() -> None:
 
 
 def _quiet() -> None:
-    """Ctrl-C ignored from here on: the work is done."""
+    """Ctrl-C and SIGTERM ignored from here on: the work is done."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 def _from_interrupt(exc: BaseException) -> bool:
