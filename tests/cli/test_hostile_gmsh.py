@@ -1,0 +1,197 @@
+"""Hostile gmsh inputs: scripts that never end or ask for far too many elements are stopped
+within seconds (the bound on the wall time is asserted as a bound: each would otherwise run
+to the child's 60 s CPU limit or beyond), and meshes whose cells overlap are refused with the
+cells named (exit 2, nothing written)."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+from helpers import SQUARE_GEO, run_cli
+
+from critfric import guards
+from critfric.meshing import sandbox
+
+CASE = """[geometry]
+shape = "file"
+file = "{file}"
+[boundary]
+contact = ["bottom"]
+dirichlet = ["top"]
+"""
+BOUND = 10.0  # seconds of wall time, start-up included, on a loaded 2-core machine
+
+
+def _files(tmp_path) -> dict:
+    return {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+
+
+def _run(tmp_path, name: str, content: str, *more):
+    (tmp_path / name).write_text(content)
+    (tmp_path / "case.toml").write_text(CASE.format(file=name))
+    before = _files(tmp_path)
+    start = time.monotonic()
+    res = run_cli("solve", tmp_path / "case.toml", "-o", tmp_path / "out.h5", *more)
+    return res, before, time.monotonic() - start
+
+
+def _refused(res, tmp_path, before, *words, code=2):
+    out = res.output
+    assert res.exit_code == code, out
+    assert out.count("critfric: error:") == 1 and "Traceback" not in out, out
+    for w in words:
+        assert w in out, (w, out)
+    assert _files(tmp_path) == before
+
+
+# ------------------------------------------------------------------------- gmsh scripts
+SCRIPTS = {  # what the script does -> (text added to the unit square, words of the message)
+    "an endless For loop": ("For i In {1:1e15}\nEndFor\n", ["5 s", "before any meshing"]),
+    "a recursive macro": ("Macro m\n  Call m;\nReturn\nCall m;\n", ["body.geo"]),
+    "a size field in the interior": (
+        'Field[1] = MathEval; Field[1].F = "0.000001 + 2*((x-0.5)^2 + (y-0.5)^2)";\n'
+        "Background Field = 1;\n", ["stopped", "--max-dofs 5000", "2.5e+03 nodes"]),
+    "a transfinite curve count": (
+        "Transfinite Curve {1, 3} = 30000000; Transfinite Curve {2, 4} = 3;\n"
+        "Transfinite Surface {1};\n", ["body.geo", "--max-dofs 5000"]),
+    "transfinite surface counts": (
+        "Transfinite Curve {1, 2, 3, 4} = 3000; Transfinite Surface {1};\n",
+        ["segments up to 0.000333", "--max-dofs 5000"]),
+    "a tiny maximum size": ("Mesh.CharacteristicLengthMax = 1e-5;\n",
+                            ["mesh size about 1e-05", "--max-dofs 5000"]),
+    "an extrusion of a million layers": (
+        "Extrude {0, 0, 1} { Surface{1}; Layers{1000000}; }\n"
+        'Physical Surface("bottom3") = {1};\n', ["body.geo"]),
+}
+
+
+@pytest.mark.parametrize("what", sorted(SCRIPTS))
+def test_scripts_that_never_end_or_mesh_too_much_are_stopped_within_seconds(tmp_path, what,
+                                                                           monkeypatch):
+    text, words = SCRIPTS[what]
+    if what == "a recursive macro":  # the same bound as the loop's: quicker, for the suite
+        monkeypatch.setattr(sandbox, "GEOMETRY_SECONDS", 1.0)
+    res, before, seconds = _run(tmp_path, "body.geo", SQUARE_GEO + text, "--max-dofs", "5000")
+    _refused(res, tmp_path, before, *words)
+    assert seconds < BOUND, (seconds, res.output)
+
+
+def test_a_small_memory_limit_stops_a_size_field_within_seconds(tmp_path, monkeypatch):
+    """No --max-dofs: the memory available sets the allowance the meshing child is held to."""
+    monkeypatch.setattr(guards, "available_memory", lambda: 200e6)
+    text = SCRIPTS["a size field in the interior"][0]
+    res, before, seconds = _run(tmp_path, "body.geo", SQUARE_GEO + text)
+    _refused(res, tmp_path, before, "stopped", "the memory available")
+    assert seconds < BOUND, (seconds, res.output)
+
+
+def test_a_script_within_the_allowance_is_meshed_as_before(tmp_path):
+    res, _, _ = _run(tmp_path, "body.geo", SQUARE_GEO + "Mesh.MeshSizeMax = 0.05;\n",
+                     "--max-dofs", "5000", "--json")
+    assert res.exit_code == 0, res.output
+
+
+# --------------------------------------------------------------------------- .msh files
+_FACETS = {2: 1, 3: 2, 4: 3}  # nodes of a facet -> gmsh type (line, triangle, quadrangle)
+_CELLS = {3: 2, 4: 3}, {4: 4, 8: 5}  # of a 2D, 3D cell (triangle ...; tetrahedron, hexahedron)
+
+
+def _msh(points, cells, groups: dict, dim: int = 2) -> str:
+    """A gmsh 2.2 ASCII file: nodes, ``cells`` (0-based) in physical group 1 "domain", and
+    each of ``groups`` {name: facets} as a physical group of dimension dim - 1."""
+    points = np.asarray(points, dtype=float)
+    points = np.column_stack([points, np.zeros((len(points), 3 - points.shape[1]))])
+    names = [f'{dim} 1 "domain"'] + [f'{dim - 1} {k} "{n}"' for k, n in enumerate(groups, 2)]
+    rows = [(_CELLS[dim - 2][len(c)], 1, c) for c in cells]
+    rows += [(_FACETS[len(f)], k, f) for k, n in enumerate(groups, 2) for f in groups[n]]
+    lines = ["$MeshFormat", "2.2 0 8", "$EndMeshFormat", "$PhysicalNames", str(len(names)),
+             *names, "$EndPhysicalNames", "$Nodes", str(len(points))]
+    lines += [f"{i + 1} {x:.17g} {y:.17g} {z:.17g}" for i, (x, y, z) in enumerate(points)]
+    lines += ["$EndNodes", "$Elements", str(len(rows))]
+    lines += [f"{i + 1} {t} 2 {g} {g} " + " ".join(str(int(v) + 1) for v in c)
+              for i, (t, g, c) in enumerate(rows)]
+    return "\n".join(lines + ["$EndElements", ""])
+
+
+SQUARE = [[0, 0], [1, 0], [1, 1], [0, 1]]
+EDGES = {"bottom": [[0, 1]], "top": [[2, 3]]}
+FAN = SQUARE + [[0.5, 0.4]]  # four triangles around an inner node
+FAN_CELLS = [[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]]
+
+MESHES = {  # what is wrong -> (points, cells, words of the message)
+    "a repeated triangle": (SQUARE, [[0, 1, 2], [0, 2, 3], [2, 1, 0]],
+                            ["cells 0 and 2 are the same triangle"]),
+    "two triangulations of one square": (SQUARE, [[0, 1, 2], [0, 2, 3], [0, 1, 3], [1, 2, 3]],
+                                         ["cells 0 and 2 overlap", "edge [0, 1]"]),
+    "an inverted cell": (SQUARE + [[0.5, 1.3]], FAN_CELLS, ["cells", "overlap", "inverted"]),
+    "a cell with a repeated node": (SQUARE, [[0, 1, 2], [0, 2, 3], [0, 0, 3]],
+                                    ["repeats a node"]),
+    "a second copy on top": (SQUARE + SQUARE, [[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]],
+                             ["cells 0 and 2 overlap", "in 2 cells"]),
+    "a body inside another": (SQUARE + [[0.2, 0.2], [0.4, 0.2], [0.4, 0.4]],
+                              [[0, 1, 2], [0, 2, 3], [4, 5, 6]], ["cells 0 and 2 overlap"]),
+    "two bodies that cross": (SQUARE + [[0.5, 0.5], [1.5, 0.5], [1.5, 1.5], [0.5, 1.5]],
+                              [[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]],
+                              ["cells 0 and 2 overlap", "boundary edges cross"]),
+    "overlapping quadrangles": (SQUARE + SQUARE, [[0, 1, 2, 3], [4, 5, 6, 7]],
+                                ["cells 0 and 1 overlap"]),
+}
+
+
+@pytest.mark.parametrize("what", sorted(MESHES))
+def test_msh_cells_that_overlap_are_refused_with_the_cells_named(tmp_path, what):
+    points, cells, words = MESHES[what]
+    element = ["--element", "Q1"] if len(cells[0]) == 4 else []
+    res, before, _ = _run(tmp_path, "body.msh", _msh(points, cells, EDGES), *element)
+    _refused(res, tmp_path, before, "body.msh", "geometry.file", *words)
+
+
+def test_a_clockwise_msh_is_the_same_body(tmp_path):
+    """All cells clockwise (a legitimate numbering): reoriented, same coefficient."""
+    values = []
+    for cells in (FAN_CELLS, [c[::-1] for c in FAN_CELLS]):
+        res, _, _ = _run(tmp_path, "body.msh", _msh(FAN, cells, EDGES), "--json", "--force")
+        assert res.exit_code == 0, res.output
+        values.append(json.loads(res.output))
+    assert values[0]["positive"] == values[1]["positive"]
+    assert values[0]["negative"] == values[1]["negative"]
+
+
+CUBE = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]]
+TETS = [[0, 1, 3, 4], [1, 2, 3, 6], [1, 3, 4, 6], [1, 4, 5, 6], [3, 4, 6, 7]]
+FACES = {"bottom": [[0, 1, 3], [1, 2, 3]], "top": [[4, 5, 6], [4, 6, 7]]}
+
+MESHES_3D = {
+    "a tetrahedron folded over its neighbour": (
+        CUBE + [[0.2, 0.2, 0.2]], TETS + [[0, 1, 3, 8]], FACES,
+        ["cells 0 and 5 overlap", "face [0, 1, 3]"]),
+    "a repeated tetrahedron": (CUBE, TETS + [[4, 3, 1, 0]], FACES,
+                               ["cells 0 and 5 are the same tetrahedron"]),
+    "a second hexahedron on top": (CUBE + CUBE, [list(range(8)), list(range(8, 16))],
+                                   {"bottom": [[0, 1, 2, 3]]}, ["cell 0", "second copy"]),
+    "a hexahedron inside another": (
+        CUBE + (0.25 + 0.5 * np.array(CUBE)).tolist(), [list(range(8)), list(range(8, 16))],
+        {"bottom": [[0, 1, 2, 3]]}, ["cell 1", "inside another"]),
+}
+
+
+@pytest.mark.parametrize("what", sorted(MESHES_3D))
+def test_3d_msh_cells_that_overlap_are_refused(tmp_path, what):
+    points, cells, faces, words = MESHES_3D[what]
+    element = ["--element", "Q1"] if len(cells[0]) == 8 else []
+    res, before, _ = _run(tmp_path, "body.msh", _msh(points, cells, faces, dim=3), *element)
+    _refused(res, tmp_path, before, "body.msh", "geometry.file", *words)
+
+
+def test_inline_meshes_that_overlap_are_refused(tmp_path):
+    case = tmp_path / "case.toml"
+    case.write_text('[geometry]\nshape = "mesh"\nnodes = [[0, 0], [1, 0], [1, 1], [0, 1]]\n'
+                    "triangles = [[0, 1, 2], [0, 2, 3], [0, 1, 3], [1, 2, 3]]\n"
+                    "[geometry.edges]\nbottom = [[0, 1]]\ntop = [[2, 3]]\n"
+                    '[boundary]\ncontact = ["bottom"]\ndirichlet = ["top"]\n')
+    before = _files(tmp_path)
+    res = run_cli("solve", case, "-o", tmp_path / "out.h5")
+    _refused(res, tmp_path, before, "geometry.triangles", "cells 0 and 2 overlap")
