@@ -121,7 +121,8 @@ def _signalled(tmp_path: Path, signum: int, *, rows: int) -> tuple:
 
 
 @pytest.mark.parametrize("signum,code,word", [(signal.SIGINT, 130, "interrupted"),
-                                              (signal.SIGTERM, 143, "terminated")])
+                                              (signal.SIGTERM, 143, "terminated")],
+                         ids=["SIGINT", "SIGTERM"])
 def test_a_signal_to_the_group_of_a_parallel_sweep_stops_it_and_keeps_its_points(
         tmp_path, signum, code, word):
     returncode, stderr, took = _signalled(tmp_path, signum, rows=2)
@@ -184,7 +185,7 @@ def _full_at(monkeypatch, writes: int, code: int = errno.ENOSPC) -> list[int]:
     return count
 
 
-@pytest.mark.parametrize("code", [errno.ENOSPC, errno.EFBIG])
+@pytest.mark.parametrize("code", [errno.ENOSPC, errno.EFBIG], ids=["ENOSPC", "EFBIG"])
 def test_a_disk_full_while_adding_a_point_leaves_the_file_as_it_was(tmp_path, monkeypatch,
                                                                     code):
     out = tmp_path / "s.h5"
@@ -258,5 +259,6 @@ def test_a_file_size_limit_in_a_parallel_sweep_is_exit_1_and_one_line(tmp_path):
                       r"points? (are|is) safe", errors[0])
     assert found, errors[0]
     kept = read_sweep(out)["rows"]
-    assert len(kept) == int(found[1]) < 11 and all(r["status"] != "" for r in kept)
+    assert len(kept) == int(found[1]) <= 11  # the limits, at the latest, find no room
+    assert all(r["status"] in ("ok", "no-real-eigenvalue") for r in kept)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.h5"]
