@@ -19,7 +19,10 @@ indices (in the order the cells were given) named:
   body inside another). Surfaces of two bodies that cut through each other are not tested
   face against face.
 
-The tests are vectorized; the boundary ones cost (boundary facets)^2 / CHUNK numpy passes.
+The tests are vectorized; the 2D boundary ones compare only edges in neighbouring cells of a
+grid (crossings) or in neighbouring bands (the winding number's ray, across the body's shorter
+extent) as fine as the longest boundary edge; the 3D one costs (pieces of the boundary) x
+(boundary faces).
 """
 
 from __future__ import annotations
@@ -94,46 +97,89 @@ def check_tiling_2d(points: np.ndarray, cells: np.ndarray, key: str) -> None:
 
 
 def _pairs(n: int, m: int):
-    """Chunks of (rows, columns) index ranges covering an n x m table, CHUNK pairs each."""
+    """Chunks of rows of an n x m table, CHUNK pairs each."""
     step = max(1, CHUNK // max(m, 1))
     for start in range(0, n, step):
         yield slice(start, min(start + step, n))
 
 
+def _near(keys_a: np.ndarray, keys_b: np.ndarray, offsets):
+    """Chunks (ia, ib) of every pair with keys_b[ib] == keys_a[ia] + offset for an offset of
+    ``offsets`` (integer cell keys: pairs of neighbouring cells)."""
+    order = np.argsort(keys_b, kind="stable")
+    ranked = keys_b[order]
+    for offset in offsets:
+        target = keys_a + offset
+        lo = np.searchsorted(ranked, target, "left")
+        count = np.searchsorted(ranked, target, "right") - lo
+        ends = np.cumsum(count)
+        first = 0
+        while first < len(keys_a):  # about CHUNK pairs at a time
+            last = int(np.searchsorted(ends, (ends[first - 1] if first else 0) + CHUNK,
+                                       "right"))
+            last = max(last, first + 1)
+            c = count[first:last]
+            ia = np.repeat(np.arange(first, last), c)
+            within = np.arange(len(ia)) - np.repeat(np.cumsum(c) - c, c)
+            yield ia, order[np.repeat(lo[first:last], c) + within]
+            first = last
+
+
+def _cells(x: np.ndarray, origin: float, step: float) -> np.ndarray:
+    return np.floor((x - origin) / step).astype(np.int64)
+
+
 def _crossing(a: np.ndarray, b: np.ndarray, nodes: np.ndarray):
     """The first pair (i, j) of segments a_i b_i, a_j b_j that cross at a point inside both
-    (not at an end), or None."""
-    scale = float(np.ptp(np.concatenate([a, b]), axis=0).max()) if len(a) else 0.0
+    (not at an end), or None. Only segments whose midpoints are in neighbouring cells of a
+    grid as fine as the longest segment are compared."""
+    if len(a) < 2:
+        return None
+    both = np.concatenate([a, b])
+    low, scale = both.min(axis=0), float(np.ptp(both, axis=0).max())
     tol = 1e-12 * scale * scale
     d = b - a
+    step = max(float(np.abs(d).max()), 1e-300)
+    cell = _cells(0.5 * (a + b), low, step)
+    width = int(cell[:, 1].max()) + 3
+    keys = cell[:, 0] * width + cell[:, 1]
 
-    def side(p, q, dp, r):  # sign of (q - p) x (r - p) for rows p (k,1,2) and r (1,m,2)
-        v = (dp[..., 0] * (r[..., 1] - p[..., 1]) - dp[..., 1] * (r[..., 0] - p[..., 0]))
+    def side(p, dp, r):  # sign of dp x (r - p), zero within the tolerance
+        v = dp[:, 0] * (r[:, 1] - p[:, 1]) - dp[:, 1] * (r[:, 0] - p[:, 0])
         return np.where(np.abs(v) <= tol, 0.0, np.sign(v))
 
-    for rows in _pairs(len(a), len(a)):
-        p, q, dp = a[rows, None], b[rows, None], d[rows, None]
-        o1, o2 = side(p, q, dp, a[None]), side(p, q, dp, b[None])
-        o3 = side(a[None], b[None], d[None], p)
-        o4 = side(a[None], b[None], d[None], q)
-        hit = (o1 * o2 < 0) & (o3 * o4 < 0)
-        hit &= ~(nodes[rows, None, :, None] == nodes[None, :, None, :]).any(axis=(-1, -2))
+    for i, j in _near(keys, keys, [u * width + v for u in (-1, 0, 1) for v in (-1, 0, 1)]):
+        keep = (i < j) & ~(nodes[i, :, None] == nodes[j, None, :]).any(axis=(1, 2))
+        i, j = i[keep], j[keep]
+        hit = (side(a[i], d[i], a[j]) * side(a[i], d[i], b[j]) < 0) & (
+            side(a[j], d[j], a[i]) * side(a[j], d[j], b[i]) < 0)
         if hit.any():
-            i, j = np.unravel_index(int(np.argmax(hit)), hit.shape)
-            return int(rows.start + i), int(j)
+            k = int(np.argmax(hit))
+            return int(i[k]), int(j[k])
     return None
 
 
 def _winding(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Winding numbers of the closed directed edges a -> b around the points ``p``."""
+    """Winding numbers of the closed directed edges a -> b around the points ``p``: edges
+    crossing a ray from each point across the body's shorter extent, found in bands as wide
+    as the longest edge."""
+    both = np.concatenate([a, b])
+    extent = np.ptp(both, axis=0)
+    sign = 1
+    if extent[0] > extent[1]:  # the ray along y: x and y swapped (a mirror: sign reversed)
+        p, a, b, both, sign = p[:, ::-1], a[:, ::-1], b[:, ::-1], both[:, ::-1], -1
+    step = max(float(np.abs(b[:, 1] - a[:, 1]).max()), 1e-300)
+    low = float(both[:, 1].min())
+    band = _cells(0.5 * (a[:, 1] + b[:, 1]), low, step)
     out = np.zeros(len(p), dtype=np.int64)
-    for rows in _pairs(len(p), len(a)):
-        x, y = p[rows, 0, None], p[rows, 1, None]
-        cross = (b[:, 0] - a[:, 0]) * (y - a[:, 1]) - (b[:, 1] - a[:, 1]) * (x - a[:, 0])
-        up = (a[:, 1] <= y) & (b[:, 1] > y) & (cross > 0)
-        down = (b[:, 1] <= y) & (a[:, 1] > y) & (cross < 0)
-        out[rows] = up.sum(axis=1) - down.sum(axis=1)
-    return out
+    for i, j in _near(_cells(p[:, 1], low, step), band, (-1, 0, 1)):
+        x, y = p[i, 0], p[i, 1]
+        ax, ay, bx, by = a[j, 0], a[j, 1], b[j, 0], b[j, 1]
+        cross = (bx - ax) * (y - ay) - (by - ay) * (x - ax)
+        turn = ((ay <= y) & (by > y) & (cross > 0)).astype(np.int64) - (
+            (by <= y) & (ay > y) & (cross < 0))
+        out += np.bincount(i, weights=turn, minlength=len(p)).astype(np.int64)
+    return sign * out
 
 
 def _containing(points: np.ndarray, cells: np.ndarray, p: np.ndarray) -> np.ndarray:
