@@ -183,11 +183,12 @@ def _winding(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _containing(points: np.ndarray, cells: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Indices of the (counterclockwise, convex) cells that contain the point ``p``."""
+    """Indices of the (counterclockwise, convex) cells that contain the point ``p``, on
+    their edges included (within INSIDE of an edge's length)."""
     v = points[cells]
     d = np.roll(v, -1, axis=1) - v
     cross = d[..., 0] * (p[1] - v[..., 1]) - d[..., 1] * (p[0] - v[..., 0])
-    return np.flatnonzero(np.all(cross > 0, axis=1))
+    return np.flatnonzero(np.all(cross >= -INSIDE * np.sum(d * d, axis=-1), axis=1))
 
 
 # ------------------------------------------------------------------------------------- 3D

@@ -6,6 +6,7 @@ cells named (exit 2, nothing written)."""
 from __future__ import annotations
 
 import json
+import re
 import time
 
 import numpy as np
@@ -13,7 +14,9 @@ import pytest
 from helpers import SQUARE_GEO, run_cli
 
 from critfric import guards
-from critfric.meshing import sandbox
+from critfric.errors import CaseError
+from critfric.fem.mesh import orient
+from critfric.meshing import overlap, sandbox
 
 CASE = """[geometry]
 shape = "file"
@@ -195,3 +198,43 @@ def test_inline_meshes_that_overlap_are_refused(tmp_path):
     before = _files(tmp_path)
     res = run_cli("solve", case, "-o", tmp_path / "out.h5")
     _refused(res, tmp_path, before, "geometry.triangles", "cells 0 and 2 overlap")
+
+
+# ----------------------------------------------------------- the tiling check, directly
+def _grid(nx: int, ny: int, width: float = 1.0, height: float = 1.0):
+    """Points and counterclockwise quadrangles of an nx x ny grid."""
+    x, y = np.meshgrid(np.linspace(0, width, nx + 1), np.linspace(0, height, ny + 1))
+    points = np.column_stack([x.ravel(), y.ravel()])
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny))
+    k = (j * (nx + 1) + i).ravel()
+    return points, np.column_stack([k, k + 1, k + nx + 2, k + nx + 1])
+
+
+def test_a_body_with_a_hole_and_a_long_strip_tile():
+    points, cells = _grid(4, 4)
+    ring = cells[[c not in (5, 6, 9, 10) for c in range(16)]]  # the middle 2 x 2 removed
+    overlap.check_tiling_2d(points, ring, "k")
+    strip = _grid(4000, 2, width=1.0, height=0.0005)
+    overlap.check_tiling_2d(*strip, "k")
+    tall = _grid(2, 4000, width=0.0005, height=1.0)
+    overlap.check_tiling_2d(*tall, "k")
+
+
+@pytest.mark.parametrize("shift", [(0.5, 0.0), (0.0, 0.25e-3), (2e-4, 1e-4)])
+def test_two_long_strips_that_overlap_anywhere_are_found(shift):
+    """Found among the neighbours of a fine grid (no all-pairs comparison)."""
+    points, cells = _grid(4000, 2, width=1.0, height=0.0005)
+    both = np.concatenate([points, points * [0.1, 1.0] + shift])
+    with pytest.raises(CaseError, match="overlap") as info:
+        overlap.check_tiling_2d(both, np.concatenate([cells, cells + len(points)]), "k")
+    listed = re.search(r"cells ([\d, and]+) overlap", str(info.value)).group(1)
+    named = [int(n) for n in re.findall(r"\d+", listed)]
+    assert min(named) < len(cells) <= max(named)  # cells of both strips
+
+
+def test_a_node_moved_across_an_edge_is_a_fold():
+    points = np.array(FAN + [[1.3, 0.5]], dtype=float)[[0, 1, 2, 3, 5]]  # the inner node out
+    cells, _ = orient(points, np.array(FAN_CELLS), "P1")
+    with pytest.raises(CaseError, match=r"cells 0 and 1 overlap.*edge \[1, 4\]"):
+        overlap.check_tiling_2d(points, cells, "k")
+    overlap.check_tiling_2d(np.array(FAN, dtype=float), np.array(FAN_CELLS), "k")
