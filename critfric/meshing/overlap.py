@@ -242,8 +242,8 @@ def _solid_angles(p: np.ndarray, x: np.ndarray) -> np.ndarray:
         length = np.linalg.norm(r, axis=-1)
         a, b, c = r[..., 0, :], r[..., 1, :], r[..., 2, :]
         det = np.einsum("kmi,kmi->km", a, np.cross(b, c))
-        dot = lambda u, v: np.einsum("kmi,kmi->km", u, v)  # noqa: E731
-        den = (length[..., 0] * length[..., 1] * length[..., 2] + dot(a, b) * length[..., 2]
-               + dot(a, c) * length[..., 1] + dot(b, c) * length[..., 0])
+        la, lb, lc = length[..., 0], length[..., 1], length[..., 2]
+        den = (la * lb * lc + np.einsum("kmi,kmi->km", a, b) * lc
+               + np.einsum("kmi,kmi->km", a, c) * lb + np.einsum("kmi,kmi->km", b, c) * la)
         out[rows] = 2 * np.arctan2(det, den).sum(axis=1)
     return out

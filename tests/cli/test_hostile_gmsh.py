@@ -55,19 +55,19 @@ SCRIPTS = {  # what the script does -> (text added to the unit square, words of 
     "an endless For loop": ("For i In {1:1e15}\nEndFor\n", ["5 s", "before any meshing"]),
     "a recursive macro": ("Macro m\n  Call m;\nReturn\nCall m;\n", ["body.geo"]),
     "a size field in the interior": (
-        'Field[1] = MathEval; Field[1].F = "0.000001 + 2*((x-0.5)^2 + (y-0.5)^2)";\n'
-        "Background Field = 1;\n", ["stopped", "--max-dofs 5000", "2.5e+03 nodes"]),
+        ('Field[1] = MathEval; Field[1].F = "0.000001 + 2*((x-0.5)^2 + (y-0.5)^2)";\n'
+         "Background Field = 1;\n"), ["stopped", "--max-dofs 5000", "2.5e+03 nodes"]),
     "a transfinite curve count": (
-        "Transfinite Curve {1, 3} = 30000000; Transfinite Curve {2, 4} = 3;\n"
-        "Transfinite Surface {1};\n", ["body.geo", "--max-dofs 5000"]),
+        ("Transfinite Curve {1, 3} = 30000000; Transfinite Curve {2, 4} = 3;\n"
+         "Transfinite Surface {1};\n"), ["body.geo", "--max-dofs 5000"]),
     "transfinite surface counts": (
         "Transfinite Curve {1, 2, 3, 4} = 3000; Transfinite Surface {1};\n",
         ["segments up to 0.000333", "--max-dofs 5000"]),
     "a tiny maximum size": ("Mesh.CharacteristicLengthMax = 1e-5;\n",
                             ["mesh size about 1e-05", "--max-dofs 5000"]),
     "an extrusion of a million layers": (
-        "Extrude {0, 0, 1} { Surface{1}; Layers{1000000}; }\n"
-        'Physical Surface("bottom3") = {1};\n', ["body.geo"]),
+        ("Extrude {0, 0, 1} { Surface{1}; Layers{1000000}; }\n"
+         'Physical Surface("bottom3") = {1};\n'), ["body.geo"]),
 }
 
 
