@@ -112,7 +112,25 @@ def names(value):
     return list(value)
 
 
+#: vertices of a polygon (and of a prism's base) at most: the check that it does not cross
+#: itself compares every pair of edges (time and memory grow with the square of the count:
+#: 1 s and 0.4 GB at 2000), and gmsh puts a node on every vertex, so a finely sampled curve
+#: meshes far finer than mesh.size (a 1000-vertex circle: ~190 000 DOFs at size 0.2)
+MAX_VERTICES = 1000
+#: vertices of a prism's base at most: gmsh's 3D meshing slows sharply with many side faces
+#: narrower than the mesh size (a unit circle's prism of depth 0.5 at size 0.2: 90 vertices
+#: 3 s, 120 vertices 10 s, 200 vertices 84 s)
+MAX_PRISM_VERTICES = 100
+PRISM_LIMIT = (f"a prism's base has at most {MAX_PRISM_VERTICES} vertices (gmsh's 3D meshing "
+               "slows sharply with many side faces narrower than the mesh size); sample the "
+               "base coarser or mesh the body in gmsh (shape = \"file\")")
+
+
 def points(value):
+    if isinstance(value, list) and len(value) > MAX_VERTICES:
+        raise Bad(f"at most {MAX_VERTICES} vertices (this list has {len(value)}: the "
+                  "self-crossing check and the mesh grow with the square of the count); "
+                  "sample the curve coarser or mesh it in gmsh (shape = \"file\")")
     ok = isinstance(value, list) and len(value) >= 3 and all(
         isinstance(p, list) and len(p) == 2
         and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)

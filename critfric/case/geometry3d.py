@@ -61,6 +61,9 @@ def solid_names(geo: dict, mesh: dict, source: str) -> set[str]:
     if geo["shape"] == "box":
         return set(BOX_FACES)
     n = len(geo["vertices"])
+    if n > c.MAX_PRISM_VERTICES:
+        raise CaseError(f"got {n} vertices; allowed: {c.PRISM_LIMIT}", file=source,
+                        key="geometry.vertices")
     names = geo["edge_names"] or [f"e{i}" for i in range(n)]
     if geo["edge_names"] is not None and len(names) != n:
         raise CaseError(f"got {len(names)} names for {n} edges; allowed: one name per edge",

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..case.checks import MAX_VERTICES
 from ..errors import CaseError
 from ..fem.mesh import shoelace
 
@@ -124,6 +125,8 @@ def validate(poly: Polygon, *, require_ccw: bool = True) -> Polygon:
     n = len(v)
     if n < 3:
         raise CaseError(f"a polygon needs at least 3 vertices, got {n}", key=key)
+    if n > MAX_VERTICES:  # the pairwise check below is O(n^2) in time and memory
+        raise CaseError(f"a polygon has at most {MAX_VERTICES} vertices, got {n}", key=key)
     if not np.all(np.isfinite(v)):
         raise CaseError("vertex coordinates must be finite numbers", key=key)
     if len(poly.edge_names) != n:

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..case.checks import MAX_PRISM_VERTICES, PRISM_LIMIT
 from ..case.geometry3d import END_FACES, SHAPES_3D
 from ..case.geometry3d import is_solid as _solid_geometry
 from ..errors import CaseError, CritfricError, SolverError
@@ -123,6 +124,9 @@ def box_polygon(size, origin) -> tuple[Polygon, float, float]:
 def prism_polygon(vertices, edge_names=None) -> Polygon:
     """The validated base polygon of a prism; its edge names must differ from the end faces'."""
     poly = polygon(vertices, edge_names)
+    if poly.n_vertices > MAX_PRISM_VERTICES:
+        raise CaseError(f"got {poly.n_vertices} vertices; allowed: {PRISM_LIMIT}",
+                        key="geometry.vertices")
     clash = sorted(set(poly.edge_names) & set(END_FACES))
     if clash:
         raise CaseError(f"edge name {clash[0]!r} is the name of a prism end face; allowed: "
