@@ -32,23 +32,31 @@ def shown(text: str) -> str:
         f" (contains {names})" if odd else "")
 
 
-def plain_number(text: str, key: str, *, allowed: str = PLAIN_NUMBER) -> float:
+def _got(text: str, within: str | None) -> str:
+    whole = f" in {str(within)[:60]!r}" if within not in (None, text) else ""
+    return f"got {shown(text)}{whole}"
+
+
+def plain_number(text: str, key: str, *, allowed: str = PLAIN_NUMBER,
+                 within: str | None = None) -> float:
     """The finite float written as ``text`` (ASCII spaces around it allowed), else a
-    :class:`CaseError` naming ``key``, the value and ``allowed``."""
+    :class:`CaseError` naming ``key``, the value (and the whole option value ``within``
+    that it is part of) and ``allowed``."""
     s = str(text).strip(" \t")
     if len(s) > MAX_CHARS or not _NUMBER.fullmatch(s):
-        raise CaseError(f"got {shown(text)}; allowed: {allowed}", key=key)
+        raise CaseError(f"{_got(text, within)}; allowed: {allowed}", key=key)
     value = float(s)
     if not math.isfinite(value):  # 1e999
-        raise CaseError(f"got {shown(text)}, beyond the largest float; allowed: {allowed}",
+        raise CaseError(f"{_got(text, within)}, beyond the largest float; allowed: {allowed}",
                         key=key)
     return value
 
 
-def plain_integer(text: str, key: str, *, allowed: str = PLAIN_INTEGER) -> int:
+def plain_integer(text: str, key: str, *, allowed: str = PLAIN_INTEGER,
+                  within: str | None = None) -> int:
     """The non-negative integer written as ``text`` in ASCII digits, else a
-    :class:`CaseError` naming ``key``, the value and ``allowed``."""
+    :class:`CaseError` as :func:`plain_number` gives."""
     s = str(text).strip(" \t")
     if len(s) > MAX_CHARS or not _INTEGER.fullmatch(s):
-        raise CaseError(f"got {shown(text)}; allowed: {allowed}", key=key)
+        raise CaseError(f"{_got(text, within)}; allowed: {allowed}", key=key)
     return int(s)

@@ -13,6 +13,7 @@ from pathlib import Path
 import typer
 
 from .._version import __version__
+from ..case.numbers import plain_number, shown
 from ..case.schema import (
     BACKENDS,
     METHODS,
@@ -21,7 +22,6 @@ from ..case.schema import (
     load_case,
     shipped_cases,
 )
-from ..case.numbers import plain_number, shown
 from ..errors import CaseError
 from ..fem.elements import NAMES
 from ..files.catalog import static_table
@@ -134,7 +134,7 @@ def _friction_range(text: str | None) -> list[float] | None:
     parts = text.split(":")
     if len(parts) != 2:
         raise CaseError(f"got {shown(text)}; allowed: {allowed}", key="--friction")
-    return [plain_number(p, "--friction", allowed=allowed) for p in parts]
+    return [plain_number(p, "--friction", allowed=allowed, within=text) for p in parts]
 
 
 @app.command(epilog="\b\nExamples:\n  critfric stability unit-square --plot\n  critfric stability unit-square --modes 6 --friction 0:1 --json\n  critfric stability inclined-body --size 0.05 -o inclined_stability.h5")

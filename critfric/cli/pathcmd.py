@@ -9,8 +9,8 @@ from pathlib import Path
 
 import typer
 
-from ..case.schema import OVERRIDES, load_case
 from ..case.numbers import plain_number, shown
+from ..case.schema import OVERRIDES, load_case
 from ..errors import CaseError
 from ..fem.elements import NAMES
 from .common import MaxDofs, TrustGeo, app, computed_and_written, figures_and_notes, fmt_values
@@ -30,7 +30,7 @@ def parse_range(text: str | None) -> list[float] | None:
     parts = text.split(":")
     if len(parts) != 2:
         raise CaseError(f"got {shown(text)}; allowed: {RANGE_ALLOWED}", key="--range")
-    return [plain_number(p, "--range", allowed=RANGE_ALLOWED) for p in parts]
+    return [plain_number(p, "--range", allowed=RANGE_ALLOWED, within=text) for p in parts]
 
 
 def _seed(seed) -> str:

@@ -285,8 +285,9 @@ def parse_frictions(text: str) -> np.ndarray:
     parts = str(text).split(":")
     if len(parts) not in (1, 3):
         raise CaseError(f"got {shown(text)}; allowed: {allowed}", key="--friction")
-    ends = [plain_number(p, "--friction", allowed=allowed) for p in parts[:2]]
-    n = plain_integer(parts[2], "--friction", allowed=allowed) if len(parts) == 3 else 1
+    ends = [plain_number(p, "--friction", allowed=allowed, within=text) for p in parts[:2]]
+    n = plain_integer(parts[2], "--friction", allowed=allowed, within=text) \
+        if len(parts) == 3 else 1
     values = np.linspace(ends[0], ends[-1], n)
     if n < 1 or not np.all(np.isfinite(values) & (values >= 0)):
         raise CaseError(f"got {shown(text)}; allowed: {allowed}", key="--friction")

@@ -77,9 +77,11 @@ class Grid:
         return out if self.quantity == "critical" else {**out, "quantity": self.quantity}
 
 
-def _float(text: str, what: str) -> float:
-    """A plain finite number (:func:`critfric.case.numbers.plain_number`)."""
-    return plain_number(text, what, allowed="a finite " + PLAIN_NUMBER.removeprefix("a "))
+def _float(text: str, what: str, within: str | None = None) -> float:
+    """A plain finite number (:func:`critfric.case.numbers.plain_number`), part of the option
+    value ``within``."""
+    return plain_number(text, what, allowed="a finite " + PLAIN_NUMBER.removeprefix("a "),
+                        within=within)
 
 
 def _range(text: str, key: str, allowed: str, default: int) -> tuple[float, float, int]:
@@ -88,11 +90,11 @@ def _range(text: str, key: str, allowed: str, default: int) -> tuple[float, floa
     parts = text.split(":")
     if len(parts) not in (2, 3):
         raise CaseError(f"got {text!r}; allowed: {allowed}", key=key)
-    lo, hi = _float(parts[0], key), _float(parts[1], key)
+    lo, hi = _float(parts[0], key, text), _float(parts[1], key, text)
     if len(parts) == 2:
         return lo, hi, default
     allowed = f"N, an integer >= 2 and <= {MAX_POINTS} in ASCII digits"
-    n = plain_integer(parts[2], key, allowed=allowed)
+    n = plain_integer(parts[2], key, allowed=allowed, within=text)
     if not 2 <= n <= MAX_POINTS:
         raise CaseError(f"got N = {parts[2][:20]!r}; allowed: {allowed}", key=key)
     return lo, hi, n
@@ -120,7 +122,7 @@ def parse_nu(text: str) -> tuple[list[float], list[str]]:
     if text.count(",") >= MAX_POINTS:
         raise CaseError(f"got {text.count(',') + 1} values; allowed: at most {MAX_POINTS}",
                         key="--nu")
-    values = [_float(v, "--nu") for v in text.split(",") if v.strip()]
+    values = [_float(v, "--nu", text) for v in text.split(",") if v.strip()]
     bad = [v for v in values if not 0.0 <= v < 0.5]
     if not values or bad:
         raise CaseError(f"got {text!r}; allowed: {allowed}", key="--nu")
@@ -144,7 +146,7 @@ def parse_slip_angles(text: str) -> tuple[list[float], list[str]]:
         if text.count(",") >= MAX_POINTS:
             raise CaseError(f"got {text.count(',') + 1} values; allowed: at most {MAX_POINTS}",
                             key="--slip-angle")
-        values = sorted({_float(v, "--slip-angle") for v in text.split(",") if v.strip()})
+        values = sorted({_float(v, "--slip-angle", text) for v in text.split(",") if v.strip()})
         if not values or not all(lo_ok <= v <= hi_ok for v in values):
             raise CaseError(f"got {text!r}; allowed: {allowed}", key="--slip-angle")
     turns = {round(v % 180.0, 9) % 180.0 for v in values}
@@ -162,7 +164,7 @@ def parse_sizes(text: str) -> list[float]:
     if text.count(",") >= MAX_POINTS:
         raise CaseError(f"got {text.count(',') + 1} sizes; allowed: at most {MAX_POINTS}",
                         key="--size")
-    values = [_float(v, "--size") for v in text.split(",") if v.strip()]
+    values = [_float(v, "--size", text) for v in text.split(",") if v.strip()]
     if not values or any(v <= 0 for v in values):
         raise CaseError(f"got {text!r}; allowed: positive mesh sizes h1,h2,...", key="--size")
     return sorted(set(values), reverse=True)

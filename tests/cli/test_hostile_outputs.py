@@ -173,6 +173,22 @@ def test_plot_of_a_sweep_without_values_says_so(tmp_path, mode, words):
     assert _files(tmp_path) == before
 
 
+def test_sweep_plot_with_every_point_failed_is_a_note_after_the_report(tmp_path):
+    from critfric.sweep.runner import sweep_case
+
+    case = critfric.load_case("unit-square")
+    grid = make_grid(case, nu="0.1,0.3", size="0.5,0.25,0.125", element="P1")
+    out = tmp_path / "s.h5"
+    sweepfile.open_sweep(out, case=sweep_case(case, grid.size)[0], grid=grid, force=True)
+    for p in grid.points():  # every point done and failed: the sweep only reports
+        sweepfile.append_point(out, empty_row(p, "failed: RuntimeError: no convergence"))
+    res = run_cli("sweep", "unit-square", "--nu", "0.1,0.3", "--size", "0.5,0.25,0.125",
+                  "--element", "P1", "-o", out, "--plot", "-j", "1")
+    assert res.exit_code == 0 and "Traceback" not in res.output, res.output
+    assert "not converged" in res.output and "note: no figure" in res.output
+    assert not list(tmp_path.glob("*.png"))
+
+
 def test_plot_of_a_sweep_whose_values_equal_their_limits_draws(tmp_path):
     path = _sweep_file(tmp_path / "s.h5", "constant")  # no distance to put on a log axis
     res = run_cli("plot", path)
