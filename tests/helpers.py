@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -108,3 +109,39 @@ def cli_process(*args, stdout=subprocess.PIPE, **env) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "critfric", *map(str, args)], env=env,
                             stdout=stdout, stderr=subprocess.PIPE, text=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+
+FILE_CASE = """[geometry]
+shape = "file"
+file = "{file}"
+[boundary]
+contact = ["bottom"]
+dirichlet = ["top"]
+"""
+
+
+def folder_files(folder: Path) -> dict:
+    """Every file of ``folder``: name -> bytes (to check that nothing was created or changed)."""
+    return {p.name: p.read_bytes() for p in folder.iterdir()}
+
+
+def run_file_case(folder: Path, name: str, content: str | bytes, *more):
+    """``critfric solve`` of a case whose geometry is the file ``name`` (written with
+    ``content``) in ``folder``: (result, the folder's files before, seconds)."""
+    (folder / name).write_bytes(content.encode() if isinstance(content, str) else content)
+    (folder / "case.toml").write_text(FILE_CASE.format(file=name))
+    before = folder_files(folder)
+    start = time.monotonic()
+    res = run_cli("solve", folder / "case.toml", "-o", folder / "out.h5", *more)
+    return res, before, time.monotonic() - start
+
+
+def assert_refused(res, folder: Path, before: dict, *words, code: int = 2) -> None:
+    """One ``critfric: error:`` line naming ``words``, exit ``code``, no traceback, and the
+    folder as it was."""
+    out = res.output
+    assert res.exit_code == code, out
+    assert out.count("critfric: error:") == 1 and "Traceback" not in out, out
+    for w in words:
+        assert w in out, (w, out)
+    assert folder_files(folder) == before

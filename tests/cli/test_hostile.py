@@ -9,39 +9,16 @@ import time
 
 import numpy as np
 import pytest
-from helpers import SQUARE_GEO, run_cli
+from helpers import SQUARE_GEO, assert_refused, folder_files, run_cli, run_file_case
 
 from critfric.meshing import geoscript, sandbox
 
-CASE = """[geometry]
-shape = "file"
-file = "{file}"
-[boundary]
-contact = ["bottom"]
-dirichlet = ["top"]
-"""
-
-
-def _files(tmp_path) -> dict:
-    return {p.name: p.read_bytes() for p in tmp_path.iterdir()}
-
 
 def _run_file(tmp_path, name: str, content: str | bytes, *more):
-    path = tmp_path / name
-    path.write_bytes(content.encode() if isinstance(content, str) else content)
-    (tmp_path / "case.toml").write_text(CASE.format(file=name))
-    before = _files(tmp_path)
-    res = run_cli("solve", tmp_path / "case.toml", "-o", tmp_path / "out.h5", *more)
-    return res, before
+    return run_file_case(tmp_path, name, content, *more)[:2]
 
 
-def _refused(res, tmp_path, before, *words, code=2):
-    out = res.output
-    assert res.exit_code == code, out
-    assert out.count("critfric: error:") == 1 and "Traceback" not in out, out
-    for w in words:
-        assert w in out, (w, out)
-    assert _files(tmp_path) == before  # nothing created, nothing changed
+_files, _refused = folder_files, assert_refused
 
 
 GEO_ATTACKS = {  # statement -> what the message names

@@ -7,47 +7,24 @@ from __future__ import annotations
 
 import json
 import re
-import time
 
 import numpy as np
 import pytest
-from helpers import SQUARE_GEO, run_cli
+from helpers import SQUARE_GEO, assert_refused, folder_files, run_cli, run_file_case
 
 from critfric import guards
 from critfric.errors import CaseError
 from critfric.fem.mesh import orient
 from critfric.meshing import overlap, sandbox
 
-CASE = """[geometry]
-shape = "file"
-file = "{file}"
-[boundary]
-contact = ["bottom"]
-dirichlet = ["top"]
-"""
 BOUND = 10.0  # seconds of wall time, start-up included, on a loaded 2-core machine
 
 
-def _files(tmp_path) -> dict:
-    return {p.name: p.read_bytes() for p in tmp_path.iterdir()}
-
-
 def _run(tmp_path, name: str, content: str, *more):
-    (tmp_path / name).write_text(content)
-    (tmp_path / "case.toml").write_text(CASE.format(file=name))
-    before = _files(tmp_path)
-    start = time.monotonic()
-    res = run_cli("solve", tmp_path / "case.toml", "-o", tmp_path / "out.h5", *more)
-    return res, before, time.monotonic() - start
+    return run_file_case(tmp_path, name, content, *more)
 
 
-def _refused(res, tmp_path, before, *words, code=2):
-    out = res.output
-    assert res.exit_code == code, out
-    assert out.count("critfric: error:") == 1 and "Traceback" not in out, out
-    for w in words:
-        assert w in out, (w, out)
-    assert _files(tmp_path) == before
+_files, _refused = folder_files, assert_refused
 
 
 # ------------------------------------------------------------------------- gmsh scripts
