@@ -3,6 +3,8 @@ analysis or path, and the table of the solve and sweep rows."""
 
 from __future__ import annotations
 
+import json
+
 from pathlib import Path
 
 import h5py
@@ -42,15 +44,26 @@ def summaries(paths) -> tuple[list[dict], list[tuple[Path, str]]]:
             elif kind == "sweep":
                 data = read_sweep(path)
                 name = str(data["attrs"].get("case_name", ""))
+                quantity = _quantity(data["attrs"])
                 for r in data["rows"]:
                     rows.append({"case": name, "file": str(path), "complete": True,
-                                 "warnings": [], "method": "sweep", **r})
+                                 "warnings": [], "method": "sweep", "quantity": quantity,
+                                 **r})
             else:
                 skipped.append((path, "not a critfric solve, sweep, stability or path file "
                                       "(an export's arrays, or another program's)"))
         except CaseError as exc:
             skipped.append((path, exc.detail))
     return rows, skipped
+
+
+def _quantity(attrs) -> str:
+    """What a sweep file's points hold: "critical" coefficients or "flutter" thresholds."""
+    try:
+        quantity = json.loads(attrs.get("grid", "{}")).get("quantity", "critical")
+    except (ValueError, AttributeError):
+        return "critical"
+    return quantity if quantity in ("critical", "flutter") else "critical"
 
 
 def static_table(rows: list[dict]) -> str:
@@ -60,12 +73,17 @@ def static_table(rows: list[dict]) -> str:
     eigenpair is an exact static branch)."""
     solid = any(r.get("dim") == 3 for r in rows)
     wide = 8 if solid else 0
-    head = f"{'case':<16} " + (f"{'dim':>3} {'law':<6} {'slip':>6} " if solid else "") \
+    kinds = {r.get("quantity", "critical") for r in rows}
+    what = f"{next(iter(kinds))} (lowest > 0)" if len(kinds) == 1 else "lowest > 0"
+    names = [r["case"] if len(kinds) == 1 else f"{r['case']} [{r.get('quantity', 'critical')}]"
+             for r in rows]  # mixed files: what each row's values are
+    w = max([16, *map(len, names)])
+    head = f"{'case':<{w}} " + (f"{'dim':>3} {'law':<6} {'slip':>6} " if solid else "") \
         + f"{'element':<7} {'nu':>6} {'h':>9} {'n_dofs':>8} {'p':>5} " \
-        + f"{'critical (lowest > 0)':>{22 + wide}} {'lowest < 0':>{14 + wide}} " \
+        + f"{what:>{22 + wide}} {'lowest < 0':>{14 + wide}} " \
         + f"{'complex':>7} {'seconds':>8}"
     lines = [head, "-" * len(head)]
-    for r in rows:
+    for name, r in zip(names, rows):
         pos = f"{r['positive'][0]:.10f}" if r["positive"] else "none"
         neg = f"{r['negative'][0]:.8f}" if r["negative"] else "none"
         three = r.get("dim") == 3
@@ -74,7 +92,7 @@ def static_table(rows: list[dict]) -> str:
             neg += f" (r {r['r_negative'][0]:.3f})" if r.get("r_negative") else ""
         angle = f"{r['slip_angle']:g}" if three and "slip_angle" in r else "-"
         frame = f"{r.get('dim', 2):>3} {r.get('law', '-'):<6} {angle:>6} " if solid else ""
-        lines.append(f"{r['case']:<16} {frame}{r['element']:<7} {r['nu']:>6.3f} "
+        lines.append(f"{name:<{w}} {frame}{r['element']:<7} {r['nu']:>6.3f} "
                      f"{r['h']:>9.4g} {r['n_dofs']:>8d} {r['n_contact']:>5d} "
                      f"{pos:>{22 + wide}} {neg:>{14 + wide}} {r['complex_count']:>7d} "
                      f"{r['seconds']:>8.2f}")

@@ -232,6 +232,8 @@ def test_sweep_of_flutter_thresholds(tmp_path):
         assert row["negative"] == [pytest.approx(direct.flutter["negative"], rel=1e-10)]
     res = run_cli("sweep", "unit-square", "--quantity", "bogus", "-o", tmp_path / "g.h5")
     assert res.exit_code == 2 and "--quantity" in res.output
+    table = run_cli("table", tmp_path / "f.h5").output  # the values say what they are
+    assert "flutter (lowest > 0)" in table and "critical" not in table
 
 
 @pytest.mark.parametrize("basis", ["contact", "modal"])
