@@ -4,7 +4,6 @@ analysis or path, and the table of the solve and sweep rows."""
 from __future__ import annotations
 
 import json
-
 from pathlib import Path
 
 import h5py
