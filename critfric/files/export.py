@@ -57,10 +57,6 @@ class SolveData:
     slip: np.ndarray | None = None  # 3D: (p, 3) slip direction s of each contact node
 
     @property
-    def lame(self) -> tuple[float, float]:
-        return lame(float(self.attrs["E"]), float(self.attrs["nu"]))
-
-    @property
     def dim(self) -> int:
         return self.mesh.dim
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import errno
 import os
+import secrets
 import shutil
 import signal
 import sys
@@ -208,21 +210,53 @@ def _mode() -> int:
     return 0o666 & ~mask
 
 
+#: the errors of a write that found no room: a full disk, a quota, the file-size limit
+NO_ROOM = {errno.ENOSPC, errno.EFBIG} | ({errno.EDQUOT} if hasattr(errno, "EDQUOT") else set())
+
+
+def write_whole(path: Path, data, *, keep_mode: bool = False) -> None:
+    """Write the bytes ``data`` to ``path`` whole or not at all: to a temporary file beside
+    it (the old file's permissions with ``keep_mode``, else the umask's), flushed to disk,
+    then renamed over it. Any failure (an OSError, an interrupt) removes the temporary file,
+    leaves ``path`` as it was and is raised as it came, for the caller to word."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")  # named before made:
+    try:  # whatever stops this block finds it to remove
+        mode = None
+        if keep_mode:
+            try:
+                mode = os.stat(path).st_mode & 0o7777
+            except FileNotFoundError:
+                pass
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL
+                     | getattr(os, "O_NOFOLLOW", 0), 0o666)
+        with open(fd, "wb") as out:
+            if mode is not None:
+                os.fchmod(out.fileno(), mode)
+            out.write(data)
+            out.flush()
+            os.fsync(out.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
 def atomic_h5(path: Path, fill) -> Path:
-    """Write an HDF5 file whole or not at all: built in memory, written to a temporary file
-    in the same directory (permissions from the umask), then renamed over ``path``. A full
-    disk or an I/O error leaves the old file unchanged and no temporary file behind, and is a
-    :class:`WriteError` (exit 1)."""
+    """Write an HDF5 file whole or not at all: built in memory, then :func:`write_whole`. A
+    full disk or an I/O error leaves the old file unchanged and no temporary file behind, and
+    is a :class:`WriteError` (exit 1)."""
     import io
 
     path = Path(path)
     buffer = io.BytesIO()
     with h5py.File(buffer, "w") as f:
         fill(f)
-    with staged([path]) as stage, open(stage[0], "wb") as out:
-        out.write(buffer.getbuffer())
-        out.flush()
-        os.fsync(out.fileno())
+    try:
+        write_whole(path, buffer.getbuffer())
+    except OSError as exc:
+        raise WriteError(f"cannot write {path} ({exc.strerror or exc}); nothing was "
+                         "changed: free some space or choose another directory") from None
     return path
 
 

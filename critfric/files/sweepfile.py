@@ -36,12 +36,10 @@ writes.
 
 from __future__ import annotations
 
-import errno
 import io
 import json
 import math
 import os
-import secrets
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -52,7 +50,7 @@ import numpy as np
 from .._version import __version__
 from ..errors import CaseError, WriteError
 from .results import file_attrs
-from .safety import check_output, held
+from .safety import NO_ROOM, check_output, held, write_whole
 from .validate import SCHEMA_VERSION
 
 STR = h5py.string_dtype()
@@ -124,10 +122,6 @@ def open_sweep(path: Path, *, case, grid, force: bool = False) -> set[tuple]:
     return set()
 
 
-#: the errors of a write that found no room: a full disk, a quota, the file-size limit
-FULL = {errno.ENOSPC, errno.EFBIG} | ({errno.EDQUOT} if hasattr(errno, "EDQUOT") else set())
-
-
 @contextmanager
 def _rewrite(path: Path, what: str = "add a point to") -> Iterator[h5py.File]:
     """The file, copied into memory and opened for writing; once closed, the new bytes
@@ -156,36 +150,19 @@ def _kept(f: h5py.File) -> str:
 
 
 def _replace(path: Path, data, what: str, kept: str) -> None:
-    """Write ``data`` to a temporary file beside ``path`` (the old file's permissions, a new
-    one's from the umask), flush it to disk and rename it over ``path``. Any failure removes
-    the temporary file, leaves ``path`` as it was and is a one-line :class:`WriteError`."""
-    tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")  # named before made:
-    try:  # whatever stops this block (an error, an interrupt) finds it to remove
-        try:
-            mode = os.stat(path).st_mode & 0o7777
-        except FileNotFoundError:
-            mode = None
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL
-                     | getattr(os, "O_NOFOLLOW", 0), 0o666)
-        with open(fd, "wb") as out:
-            if mode is not None:
-                os.fchmod(out.fileno(), mode)
-            out.write(data)
-            out.flush()
-            os.fsync(out.fileno())
-        os.replace(tmp, path)
+    """:func:`~critfric.files.safety.write_whole` of ``data`` over ``path`` (its permissions
+    kept); a failure leaves ``path`` as it was and is a one-line :class:`WriteError` that says
+    what the file keeps (``kept``)."""
+    try:
+        write_whole(path, data, keep_mode=True)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
         why = exc.strerror or str(exc)
-        if exc.errno in FULL:
+        if exc.errno in NO_ROOM:
             raise WriteError(f"cannot {what} {path}: the disk is full ({why}); {kept}: free "
                              "some space and run the sweep again to compute only the rest"
                              ) from None
         raise WriteError(f"cannot {what} {path} ({why}); {kept}: run the sweep again to "
                          "compute only the rest") from None
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 def append_point(path: Path, row: dict) -> None:
