@@ -35,7 +35,7 @@ import scipy.sparse.linalg as spla
 from ..errors import SolverError
 from ..guards import usable_cpus
 from .pardiso import SINGULAR as _SINGULAR
-from .pardiso import PardisoFactor, PardisoPlan, pardiso_library, symmetrize, upper_triangle
+from .pardiso import PardisoFactor, PardisoPlan, pardiso_library, symmetrize
 from .superlu import trailing_blocks
 
 BACKENDS = ("scipy", "pardiso")
@@ -48,10 +48,6 @@ SPLIT_MIN_SCHUR = 4000
 SPLIT_WORKERS = 2  # pieces factored at once (threads; at most the CPUs this process may use)
 REFINE_STEPS = 3  # ScipySchur.extend: refinement steps on the contact rows (1-2 are used)
 PREFERENCE = ("pardiso", "scipy")  # "auto": fastest first
-
-_SINGULAR = ("the stiffness matrix is singular. Check that the Dirichlet edges hold the body "
-             "(no rigid motion left).")
-
 
 def available_backends() -> tuple[str, ...]:
     """Backends that can run here, fastest first."""

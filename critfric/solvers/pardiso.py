@@ -14,7 +14,8 @@ import importlib.metadata
 import importlib.util
 import threading
 import weakref
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 import scipy.linalg as la

@@ -15,8 +15,13 @@ from critfric.case.schema import loads_case
 from critfric.errors import CaseError
 from critfric.fem.mesh import Mesh
 from critfric.files.catalog import summaries
-from critfric.files.pathfile import (default_path_output, path_table, read_path,
-                                     read_path_summary, write_path)
+from critfric.files.pathfile import (
+    default_path_output,
+    path_table,
+    read_path,
+    read_path_summary,
+    write_path,
+)
 from critfric.multiplicity.pathresult import Curve, Event, PathPoint, PathResult, Piece
 from critfric.plots.figures import plot_file
 

@@ -23,6 +23,7 @@ from critfric.solve import prepare
 from critfric.solvers import backends as linsolve
 from critfric.solvers import eigen, ordering
 from critfric.solvers.eigen import ContactState
+from critfric.solvers.pardiso import upper_triangle
 
 AVAILABLE = linsolve.available_backends()
 
@@ -277,8 +278,6 @@ def test_pardiso_factors_freed_by_the_collector_in_another_thread():
 
 @pytest.mark.parametrize("density", [0.0, 0.003, 0.05])
 def test_upper_triangle_is_triu(density):
-    from critfric.solvers.backends import upper_triangle
-
     A = sp.random(300, 300, density=density, format="csr", random_state=3)
     A = (A + A.T + sp.eye(300)).tocsr()
     # the rows of A in reverse, each with its entries in reverse: unsorted CSR
@@ -355,7 +354,7 @@ def test_stiffness_pattern_is_known_before_its_values(element):
         assert (a != b).nnz == 0
     np.testing.assert_array_equal(layout.contact_dofs, np.concatenate([own.cn, own.ct]))
     np.testing.assert_array_equal(layout.free, own.free)
-    U = linsolve.upper_triangle(own.stiffness(*lame(1.0, 0.3), keep_zeros=True))
+    U = upper_triangle(own.stiffness(*lame(1.0, 0.3), keep_zeros=True))
     np.testing.assert_array_equal(U.indptr, ptr)
     np.testing.assert_array_equal(U.indices, col)
     K = own.stiffness(*lame(1.0, 0.3))  # without keep_zeros, the zeros go
@@ -372,7 +371,7 @@ def test_pardiso_analysis_started_from_the_pattern_gives_the_same_factorization(
     system = prep.system
     K = system.stiffness(*lame(1.0, 0.3), keep_zeros=True)
     index = np.concatenate([system.cn, system.ct])
-    U = linsolve.upper_triangle(K)
+    U = upper_triangle(K)
     whole = linsolve.PardisoFactor(K, symmetric=True, schur_index=index)
     plan = linsolve.PardisoPlan(U.indptr, U.indices, index)
     planned = plan.schur(K, index)
@@ -400,7 +399,7 @@ def test_pardiso_analysis_failure_is_raised_in_the_callers_thread(monkeypatch):
     prep = prepare(loads_case(square_case(element="P1", size=0.25)))
     K = prep.system.stiffness(*lame(1.0, 0.3), keep_zeros=True)
     index = np.concatenate([prep.system.cn, prep.system.ct])
-    U = linsolve.upper_triangle(K)
+    U = upper_triangle(K)
 
     def fail(self, schur_index):
         raise SolverError("PARDISO phase 11 failed with error -2 (not enough memory)")

@@ -112,7 +112,7 @@ def test_flutter_onset_against_an_independent_dense_pencil(square):
         f, kappa = result.flutter[d], result.flutter_kappa[d]
         assert (f > 0) == (d == "positive")
 
-        def near(friction):
+        def near(friction, kappa=kappa):
             w = eigenvalues(friction)
             return w[np.argsort(np.abs(w - kappa))[:2]]
 
