@@ -15,10 +15,13 @@ import unicodedata
 from ..errors import CaseError
 
 PLAIN_NUMBER = "a plain number: ASCII digits 0-9, '.', 'e', '+', '-' (e.g. 0.25, -2, 1e-3)"
+FINITE_NUMBER = "a finite " + PLAIN_NUMBER.removeprefix("a ")
 PLAIN_INTEGER = "a plain integer: ASCII digits 0-9 (e.g. 11)"
+SIGNED_INTEGER = "a plain integer: ASCII digits 0-9 and a sign (e.g. 11, -1)"
 MAX_CHARS = 64  # longer text is no number a user meant
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _INTEGER = re.compile(r"\+?[0-9]+")
+_SIGNED = re.compile(r"[+-]?[0-9]+")
 
 
 def shown(text: str) -> str:
@@ -37,12 +40,16 @@ def _got(text: str, within: str | None) -> str:
     return f"got {shown(text)}{whole}"
 
 
+def _bare(text: str, spaces: bool) -> str:
+    return str(text).strip(" \t") if spaces else str(text)
+
+
 def plain_number(text: str, key: str, *, allowed: str = PLAIN_NUMBER,
-                 within: str | None = None) -> float:
-    """The finite float written as ``text`` (ASCII spaces around it allowed), else a
-    :class:`CaseError` naming ``key``, the value (and the whole option value ``within``
-    that it is part of) and ``allowed``."""
-    s = str(text).strip(" \t")
+                 within: str | None = None, spaces: bool = True) -> float:
+    """The finite float written as ``text`` (ASCII spaces around it allowed if ``spaces``:
+    a part of a list), else a :class:`CaseError` naming ``key``, the value (and the whole
+    option value ``within`` that it is part of) and ``allowed``."""
+    s = _bare(text, spaces)
     if len(s) > MAX_CHARS or not _NUMBER.fullmatch(s):
         raise CaseError(f"{_got(text, within)}; allowed: {allowed}", key=key)
     value = float(s)
@@ -53,10 +60,11 @@ def plain_number(text: str, key: str, *, allowed: str = PLAIN_NUMBER,
 
 
 def plain_integer(text: str, key: str, *, allowed: str = PLAIN_INTEGER,
-                  within: str | None = None) -> int:
-    """The non-negative integer written as ``text`` in ASCII digits, else a
-    :class:`CaseError` as :func:`plain_number` gives."""
-    s = str(text).strip(" \t")
-    if len(s) > MAX_CHARS or not _INTEGER.fullmatch(s):
+                  within: str | None = None, spaces: bool = True, signed: bool = False) -> int:
+    """The non-negative integer (any integer if ``signed``: the caller checks its range)
+    written as ``text`` in ASCII digits, else a :class:`CaseError` as :func:`plain_number`
+    gives."""
+    s = _bare(text, spaces)
+    if len(s) > MAX_CHARS or not (_SIGNED if signed else _INTEGER).fullmatch(s):
         raise CaseError(f"{_got(text, within)}; allowed: {allowed}", key=key)
     return int(s)

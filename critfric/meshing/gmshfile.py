@@ -36,7 +36,7 @@ from .geoscript import refusals
 from .gmshfile3d import build as build_solid
 from .gmshfile3d import domain_entities, has_solid_cells, mesh_solid_geo, read_solid_msh
 from .mesh import _gmsh_session, inline_mesh
-from .sandbox import read_input, run_in_child, set_stage
+from .sandbox import max_nodes, read_input, run_in_child, set_stage
 
 ENTRY = "critfric.meshing.gmshfile:child_mesh"  # what the sandboxed child runs
 
@@ -394,16 +394,3 @@ def child_mesh(work: Path, job: dict) -> Mesh:
     return mesh_geo(path, element=element, size=job["size"], domain=job["domain"],
                     trust=job["trust"], check=check, shown=shown,
                     stage=functools.partial(set_stage, work))
-
-
-def max_nodes(max_dofs: int | None, element: str) -> dict[str, float]:
-    """The most first-order mesh nodes the resource guard can allow, by dimension ("2",
-    "3"): the DOFs of ``max_dofs`` or, without it, the DOFs that fit in the memory available,
-    over dim DOFs a node and order^dim nodes per vertex (P2/Q2 add edge and face nodes)."""
-    from ..guards import available_memory, dofs_that_fit
-
-    order = 2 if element in ("P2", "Q2") else 1
-    memory = available_memory()
-    return {str(d): (max_dofs if max_dofs is not None else
-                     dofs_that_fit(memory, dim=d, element="Q1" if element[0] == "Q" else "P1"))
-            / (d * order**d) for d in (2, 3)}

@@ -1,4 +1,5 @@
-"""User gmsh files are read and meshed in a limited child process.
+"""User gmsh files are read and meshed in a limited child process (and so are boxes and
+prisms whose features are far below the mesh size, :mod:`.solid`, under their own wall time).
 
 The parent copies the file's bytes (read once: what was checked is what is meshed) into a
 fresh private directory that holds nothing else (so gmsh finds no sidecar ``.opt`` file and
@@ -88,14 +89,16 @@ def run_in_child(path: Path, data: bytes, job: dict, *, entry: str,
             raise _error_from(json.loads(error.read_text()), path, source)
         result = work / "mesh.npz"
         if proc.returncode != 0 or not result.is_file():
-            raise CaseError(_failure(proc), file=str(path), key="geometry.file")
+            raise CaseError(_failure(proc), file=str(path), key=job.get("key", "geometry.file"))
         return _mesh_from(result, path)
 
 
 def _watch(proc: subprocess.Popen, work: Path, job: dict, path: Path) -> bytes:
-    """Wait for the child, stopping it (a CaseError) past the wall-clock limit, past
+    """Wait for the child, stopping it (a CaseError) past the wall-clock limit
+    (``job["wall_seconds"]``, else WALL_SECONDS; ``job["slow"]`` says why), past
     GEOMETRY_SECONDS in its "geometry" stage, or when its memory grows past what
-    ``job["max_nodes"]`` allows in its "meshing" stage; its stderr."""
+    ``job["max_nodes"]`` allows in its "meshing" stage (``job["what"]`` is meshed, the
+    ``job["suspects"]`` why); its stderr."""
     start = time.monotonic()
     stage, since, base, max_nodes = "", start, 0, None
     while True:
@@ -105,9 +108,10 @@ def _watch(proc: subprocess.Popen, work: Path, job: dict, path: Path) -> bytes:
             pass
         now = time.monotonic()
         why = None
-        if now - start > WALL_SECONDS:
-            why = (f"reading or meshing this file took more than {WALL_SECONDS} s and was "
-                   "stopped (an endless loop in a .geo script?)")
+        if now - start > job.get("wall_seconds", WALL_SECONDS):
+            why = job.get("slow") or (f"reading or meshing this file took more than "
+                                      f"{WALL_SECONDS} s and was stopped (an endless loop in "
+                                      "a .geo script?)")
         seen = _read_stage(work)
         if seen != stage:
             stage, since = seen, now
@@ -123,14 +127,15 @@ def _watch(proc: subprocess.Popen, work: Path, job: dict, path: Path) -> bytes:
                 WATCH_SLACK_BYTES + WATCH_BYTES_PER_NODE[dim] * float(max_nodes)):
             allows = (f"--max-dofs {job['max_dofs']}" if job.get("max_dofs") is not None
                       else "the memory available")
-            why = (f"meshing this gmsh script was stopped: its mesh grew past the "
-                   f"{float(max_nodes):.3g} nodes that {allows} allows (a mesh-size field, a "
-                   "transfinite count or a mesh size far finer than the body?). Use a coarser "
-                   "mesh" + (", or a larger --max-dofs" if job.get("max_dofs") is not None
-                             else ", or pass --max-dofs N to override"))
+            why = (f"meshing {job.get('what', 'this gmsh script')} was stopped: its mesh grew "
+                   f"past the {float(max_nodes):.3g} nodes that {allows} allows ("
+                   + job.get("suspects", "a mesh-size field, a transfinite count or a mesh "
+                             "size far finer than the body?") + "). Use a coarser mesh"
+                   + (", or a larger --max-dofs" if job.get("max_dofs") is not None
+                      else ", or pass --max-dofs N to override"))
         if why is not None:
             _stop(proc)
-            raise CaseError(why, file=str(path), key="geometry.file")
+            raise CaseError(why, file=str(path), key=job.get("key", "geometry.file"))
 
 
 def _stop(proc: subprocess.Popen) -> None:
@@ -161,6 +166,19 @@ def _resident(pid: int) -> int:
             return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
     except (OSError, ValueError, IndexError):
         return 0
+
+
+def max_nodes(max_dofs: int | None, element: str) -> dict[str, float]:
+    """The most first-order mesh nodes the resource guard can allow, by dimension ("2",
+    "3"): the DOFs of ``max_dofs`` or, without it, the DOFs that fit in the memory available,
+    over dim DOFs a node and order^dim nodes per vertex (P2/Q2 add edge and face nodes)."""
+    from ..guards import available_memory, dofs_that_fit
+
+    order = 2 if element in ("P2", "Q2") else 1
+    memory = available_memory()
+    return {str(d): (max_dofs if max_dofs is not None else
+                     dofs_that_fit(memory, dim=d, element="Q1" if element[0] == "Q" else "P1"))
+            / (d * order**d) for d in (2, 3)}
 
 
 def set_stage(work: Path, stage: str) -> None:

@@ -47,6 +47,16 @@ BOX_SIDES = ("y0", "x1", "y1", "x0")  # the base rectangle's edges, counterclock
 DENSITY = {4: (0.6, 0.95, 0.5), 8: (1.0, 0.5, 0.25)}
 FACET_AREA = {3: math.sqrt(3) / 2, 4: 1.0}  # a boundary facet's area / h^2
 TET_ALGORITHM = 10  # gmsh's Mesh.Algorithm3D for tetrahedra: HXT
+#: Features shorter than the mesh size (an edge of the base, the gap between a vertex and
+#: another edge, the depth) can make gmsh slow out of all proportion to the mesh: a base of
+#: 100 edges of h/10 took 16 s for 4.5 k nodes, a base of 100 edges of h/1000 87 s for 2 k
+#: nodes (gmsh 4.15), against 35-45 us a node without them. Such a body is meshed in the
+#: limited child of :mod:`.sandbox`, given CHILD_SECONDS of wall time (start-up included)
+#: plus CHILD_SECONDS_PER_NODE for each node of the estimate.
+SHORT_FEATURE = 1.0  # in mesh sizes
+CHILD_SECONDS = 6.0
+CHILD_SECONDS_PER_NODE = 1e-4
+ENTRY = "critfric.meshing.solid:child_solid"
 
 
 @dataclass(frozen=True)
@@ -98,6 +108,21 @@ def prism_footprint(poly: Polygon, depth: float) -> SolidFootprint:
     area = abs(poly.area)
     return SolidFootprint(area * depth, 2 * area + perimeter * depth,
                           2 * perimeter + poly.n_vertices * depth, 2 * poly.n_vertices)
+
+
+def smallest_feature(poly: Polygon, depth: float) -> float:
+    """The shortest length a mesh of the prism must resolve: its depth, an edge of the base,
+    or the gap between a vertex and an edge not its own (two edges that do not meet are
+    nearest at an end of one of them)."""
+    a, b = poly.segments[:, 0], poly.segments[:, 1]
+    d = b - a
+    length2 = np.einsum("ij,ij->i", d, d)
+    v = poly.vertices[:, None, :]  # (vertex, edge)
+    t = np.clip(np.einsum("vej,ej->ve", v - a, d) / length2, 0.0, 1.0)
+    gap = np.linalg.norm(v - (a + t[..., None] * d), axis=2)
+    i = np.arange(poly.n_vertices)
+    gap[(i[:, None] == i) | (i[:, None] == np.roll(i, -1))] = np.inf  # its own two edges
+    return float(min(depth, np.sqrt(length2.min()), gap.min()))
 
 
 def face_sizes(poly: Polygon, depth: float) -> dict[str, tuple[float, float]]:
@@ -302,6 +327,43 @@ def solid_mesh(case, *, max_dofs: int | None = None) -> Mesh:
                             m["element"], min_quality=MIN_QUALITY)
     check_solid(case, max_dofs=max_dofs)
     poly, z0, depth = solid_geometry(case)
-    hexes = solid(m["element"]).n_vertices == 8
-    return build_solid(poly, depth=depth, z0=z0, size=m["size"], element=m["element"],
-                       structured=g["shape"] == "box" and hexes)
+    job = {"depth": depth, "z0": z0, "size": m["size"], "element": m["element"],
+           "structured": g["shape"] == "box" and solid(m["element"]).n_vertices == 8}
+    feature = smallest_feature(poly, depth)
+    if feature >= SHORT_FEATURE * m["size"]:
+        return build_solid(poly, **job)
+    return _child_solid(case, poly, job, feature, max_dofs=max_dofs)
+
+
+def _child_solid(case, poly: Polygon, job: dict, feature: float, *,
+                 max_dofs: int | None) -> Mesh:
+    """:func:`build_solid` in the limited child of :mod:`.sandbox`, stopped past its wall
+    time or its memory allowance."""
+    from pathlib import Path
+
+    from .sandbox import max_nodes, run_in_child
+
+    h, element, shape = job["size"], job["element"], case.geometry["shape"]
+    nodes = prism_footprint(poly, job["depth"]).nodes(h, element)
+    seconds = max(CHILD_SECONDS, CHILD_SECONDS_PER_NODE * nodes)
+    what = f"this {shape}"
+    job = {**job, "vertices": poly.vertices.tolist(), "edge_names": list(poly.edge_names),
+           "kind": shape, "max_dofs": max_dofs, "max_nodes": max_nodes(max_dofs, element),
+           "wall_seconds": seconds, "what": what, "key": "mesh.size",
+           "suspects": f"its depth, edges or gaps as short as {feature:.3g}",
+           "slow": f"meshing {what} took more than {seconds:.3g} s of wall time and was "
+                   f"stopped: its depth, edges or gaps are as short as {feature:.3g}, below "
+                   f"mesh.size = {h:g}; allowed: a body gmsh meshes within {seconds:.3g} s "
+                   "(merge the short edges of the base, or use a mesh size closer to them)"}
+    return run_in_child(Path(case.source or "case.toml"), b"", job, entry=ENTRY,
+                        source=case.source)
+
+
+def child_solid(work, job: dict) -> Mesh:
+    """In the sandboxed child: the mesh of the prism of ``job``."""
+    from .sandbox import set_stage
+
+    set_stage(work, "meshing 3")
+    poly = Polygon(np.array(job["vertices"], dtype=float), tuple(job["edge_names"]))
+    return build_solid(poly, depth=job["depth"], z0=job["z0"], size=job["size"],
+                       element=job["element"], structured=job["structured"])

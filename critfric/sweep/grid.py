@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..case.numbers import PLAIN_NUMBER, plain_integer, plain_number
+from ..case.numbers import FINITE_NUMBER, plain_integer, plain_number
 from ..errors import CaseError
 from ..fem.elements import NAMES
 
@@ -80,8 +80,7 @@ class Grid:
 def _float(text: str, what: str, within: str | None = None) -> float:
     """A plain finite number (:func:`critfric.case.numbers.plain_number`), part of the option
     value ``within``."""
-    return plain_number(text, what, allowed="a finite " + PLAIN_NUMBER.removeprefix("a "),
-                        within=within)
+    return plain_number(text, what, allowed=FINITE_NUMBER, within=within)
 
 
 def _range(text: str, key: str, allowed: str, default: int) -> tuple[float, float, int]:

@@ -14,6 +14,7 @@ from helpers import SQUARE_GEO
 from typer.testing import CliRunner
 
 from critfric.cli.app import app
+from critfric.cli.common import number_options
 
 runner = CliRunner()
 
@@ -284,7 +285,7 @@ CATALOGUE = [
     Bad("missing case file", {}, ("solve", "nope.toml"), 2, ("nope.toml", "no such case file")),
     Bad("case path is a directory", {"dir/x": "x"}, ("solve", "dir"), 2, ("dir", "not a file")),
     option("--nu out of range", "--nu", "0.7", words=("case.toml", "material.nu", "0.7")),
-    option("--nu not a number", "--nu", "abc", words=("--nu", "valid number")),
+    option("--nu not a number", "--nu", "abc", words=("--nu", "'abc'", "finite plain number")),
     option("--element unknown", "--element", "P9", words=("mesh.element", "P9")),
     option("--count 0", "--count", "0", words=("solve.count",)),
     option("--size negative", "--size", "-1", words=("mesh.size",)),
@@ -424,3 +425,44 @@ def test_bad_input(tmp_path, monkeypatch, bad):
 def test_the_catalogue_is_large_and_distinct():
     assert len(CATALOGUE) >= 30
     assert len({b.what for b in CATALOGUE}) == len(CATALOGUE)
+
+
+# values Python's int()/float() take that are no plain ASCII number, and what names them
+NOT_PLAIN = [("1_0", "'1_0'"), ("\uff11\uff10", "U+FF11 FULLWIDTH DIGIT ONE"),
+             ("\u0663", "U+0663 ARABIC-INDIC DIGIT THREE"), ("nan", "'nan'"),
+             ("-inf", "'-inf'"), (" 3 ", "' 3 '"), ("1\x1b[2J", "'1\\x1b[2J'")]
+
+
+@pytest.mark.parametrize("command", [("solve", "x", "--nu"), ("solve", "x", "--count"),
+                                     ("stability", "x", "--steps"), ("sweep", "--grading"),
+                                     ("sweep", "--jobs"), ("path", "x", "--samples"),
+                                     ("verify", "x", "--off")])
+@pytest.mark.parametrize("value,named", NOT_PLAIN, ids=[v for v, _ in NOT_PLAIN])
+def test_numeric_options_take_plain_ascii_numbers_only(command, value, named):
+    res = runner.invoke(app, [*command, value])
+    message = " ".join(res.stderr.split())
+    assert res.exit_code == 2 and res.stdout == "", res.output
+    assert "Traceback" not in res.output and "\x1b" not in res.stderr
+    for word in (command[-1], named, "allowed: a "):
+        assert word in message, (word, message)
+
+
+def test_every_numeric_option_of_every_command_is_plain():
+    """A later int or float option gets the plain parser too: each refuses a full-width
+    digit, naming itself and the character."""
+    options = number_options(app)
+    assert {"--nu", "--count", "--max-dofs", "--jobs", "--off", "--node"} <= {
+        o for _, o in options} and len(options) >= 20
+    for command, option in options:
+        res = runner.invoke(app, [command, "x", option, "\uff13"])
+        message = " ".join(res.stderr.split())
+        assert res.exit_code == 2 and option in message and "U+FF13" in message, (
+            command, option, res.output)
+
+
+def test_plain_numeric_options_still_read_plain_numbers_and_bounds():
+    res = runner.invoke(app, ["solve", "one-triangle", "--json", "--nu", "+0.25", "--count",
+                              "1", "-o", "/dev/null/x.h5"])
+    assert res.exit_code == 2 and "/dev/null" in res.stderr, res.output  # parsed, then refused
+    res = runner.invoke(app, ["sweep", "--jobs", "0"])
+    assert res.exit_code == 2 and "'0'" in res.stderr and ">= 1" in res.stderr, res.output
