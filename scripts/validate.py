@@ -18,6 +18,15 @@ References (nu = 0.3):
   references from critfric's own graded Q2 families (1.9447114 and 0.5850169 +- 2e-7).
 - mixed states (a 2 x 1 block stuck on [0, 0.5], slip + on [0.5, 1.3], slip - on [1.3, 2] of
   its base): no reference; its families must agree between elements.
+- corner (the unit square clamped on its left side too: Dirichlet meets Gamma_C at a right
+  angle): 1.9916255 +- 1e-6; junctions (a 2 x 1 block, its base free on [0, 0.5], stuck on
+  [0.5, 1.3], slipping along +t on [1.3, 2]): 2.365241 +- 3e-6. Both from
+  ``scripts/references.py`` (the same radial grading, h (d / R)^(3/4)), whose floor of 1e-5
+  is too coarse at these points: the values move by 2e-6 (corner) and 5e-6 (junctions) when
+  it goes down to 1e-6. Corner, floor 1e-6: P2 1.99162800, 1.99162624 and Q2 1.99162548,
+  1.99162535 at h = 0.05, 0.025; junctions at h = 0.05, floor 1e-6: P2 2.36523711, Q2
+  2.36524060; floor 3e-7: Q2 2.36524088 (P2 there finds a spurious 2.10204 below it: see
+  docs/validation.md, "Strong grading").
 
 Usage: python scripts/validate.py [--jobs N] [--out DIR] [--markdown] [--docs FILE]
 
@@ -50,10 +59,29 @@ MIXED = {"geometry": {"shape": "rectangle", "width": 2.0, "height": 1.0},
          "contact": {"rules": [{"from": 0.0, "to": 0.5, "status": "stuck"},
                                {"from": 0.5, "to": 1.3, "status": "slip", "gamma": 1},
                                {"from": 1.3, "to": 2.0, "status": "slip", "gamma": -1}]}}
+#: the unit square clamped on its left side too: Dirichlet meets Gamma_C at a right angle
+CORNER = {"geometry": {"shape": "square", "side": 1.0},
+          "boundary": {"contact": ["bottom"], "dirichlet": ["left", "top"]},
+          "mesh": {"size": 0.1, "element": "P1"}}
+#: a 2 x 1 block whose base is free on [0, 0.5], stuck on [0.5, 1.3], slipping along +t on
+#: [1.3, 2]: free | stuck and stuck | slip junctions inside Gamma_C
+JUNCTIONS = {"geometry": {"shape": "rectangle", "width": 2.0, "height": 1.0},
+             "boundary": {"contact": ["bottom"], "dirichlet": ["top"]},
+             "mesh": {"size": 0.1, "element": "P1"},
+             "contact": {"rules": [{"from": 0.0, "to": 0.5, "status": "free"},
+                                   {"from": 0.5, "to": 1.3, "status": "stuck"},
+                                   {"from": 1.3, "to": 2.0, "status": "slip", "gamma": 1}]}}
+#: the bodies of the study (name -> a function giving its case)
+CASES = {"unit-square": lambda: critfric.load_case("unit-square"),
+         "inclined-body": lambda: critfric.load_case("inclined-body"),
+         "mixed-states": lambda: from_dict(MIXED, name="mixed_states"),
+         "corner": lambda: from_dict(CORNER, name="corner"),
+         "junctions": lambda: from_dict(JUNCTIONS, name="junctions")}
 #: (case, family) -> reference |eigenvalue| at nu = 0.3 (see the module docstring)
 REFERENCE = {("unit-square", "positive"): 1.94471145, ("unit-square", "negative"): 1.94471145,
-             ("inclined-body", "positive"): 0.58501693}
-REFERENCE_ERROR = {"unit-square": 3e-8, "inclined-body": 3e-8}
+             ("inclined-body", "positive"): 0.58501693, ("corner", "positive"): 1.9916255,
+             ("junctions", "positive"): 2.365241}
+REFERENCE_ERROR = {"unit-square": 3e-8, "inclined-body": 3e-8, "corner": 1e-6, "junctions": 3e-6}
 
 
 def closed_forms() -> list[tuple[str, float, float]]:
@@ -68,9 +96,7 @@ def closed_forms() -> list[tuple[str, float, float]]:
 
 def study(out: Path, jobs: int) -> list[dict]:
     rows = []
-    cases = {"unit-square": critfric.load_case("unit-square"),
-             "inclined-body": critfric.load_case("inclined-body"),
-             "mixed-states": from_dict(MIXED, name="mixed_states")}
+    cases = {name: make() for name, make in CASES.items()}
     for name, case in cases.items():
         t0 = time.perf_counter()
         grid = make_grid(case, nu=str(NU), size=SIZES, element=ELEMENTS)
