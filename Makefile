@@ -50,6 +50,7 @@ $(NOFAST)/.installed: pyproject.toml $(STAMP)
 ONCE := --deselect tests/test_readme.py::test_every_readme_command_runs_in_order \
 	--ignore=tests/test_gallery.py --ignore=tests/test_docs.py \
 	--ignore=tests/case --ignore=tests/meshing --ignore=tests/test_architecture.py \
+	--ignore=tests/test_exponents.py \
 	--ignore=tests/cli/test_badinput.py --ignore=tests/cli/test_fuzz.py \
 	--ignore=tests/cli/test_hostile.py --ignore=tests/cli/test_hostile_gmsh.py \
 	--ignore=tests/cli/test_hostile_outputs.py --ignore=tests/cli/test_hostile_sweep.py
