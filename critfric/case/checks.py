@@ -89,8 +89,9 @@ def boolean(value):
 
 
 def string(value):
-    if not isinstance(value, str) or not value:
-        raise Bad("a non-empty string")
+    if not isinstance(value, str) or not value or not value.isprintable():
+        raise Bad("a non-empty string of printable characters (no control characters: they "
+                  "would reach the terminal)")
     return value
 
 
@@ -104,9 +105,9 @@ def names(value):
     if isinstance(value, str):
         value = [value]
     if not isinstance(value, list) or not value or not all(
-        isinstance(v, str) and v for v in value
+        isinstance(v, str) and v and v.isprintable() for v in value
     ):
-        raise Bad("a non-empty list of edge names (strings)")
+        raise Bad("a non-empty list of edge names (strings of printable characters)")
     if len(set(value)) != len(value):
         raise Bad("a list of distinct edge names")
     return list(value)
@@ -207,8 +208,9 @@ def face_table(value):
 
 
 def string_list(value):
-    if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
-        raise Bad("a list of non-empty strings")
+    if not isinstance(value, list) or not all(isinstance(v, str) and v and v.isprintable()
+                                              for v in value):
+        raise Bad("a list of non-empty strings of printable characters")
     return list(value)
 
 

@@ -23,20 +23,25 @@ NEWEST_VERSION = SOLID_VERSION  # the newest layout this version reads
 UNIT_TOL = 1e-6  # a stored unit vector's length may differ from 1 by this (and a dot by this)
 SLACK_BYTES = 1 << 20  # a dataset may declare at most 4 x the file's size plus this
 
-# root attributes: name -> kind ("int", "float", "str", "json", "element")
+# root attributes: name -> kind ("int", "float", "str", "toml", "texts", "json", "element");
+# every text must be printable (a file from elsewhere must not reach the terminal with control
+# characters), apart from the line breaks and tabs of a TOML text
 SOLVE_ATTRS = {"nu": "float", "E": "float", "h": "float", "n_dofs": "int", "n_contact": "int",
                "seconds": "float", "element": "element", "case_name": "str", "solver": "str",
-               "case_toml": "str", "warnings": "texts", "notes": "texts"}
-SWEEP_ATTRS = {"case_name": "str", "case_toml": "str", "grid": "json", "count": "int"}
+               "case_toml": "toml", "warnings": "texts", "notes": "texts"}
+SWEEP_ATTRS = {"case_name": "str", "case_toml": "toml", "grid": "json", "count": "int"}
 STABILITY_ATTRS = {"nu": "float", "E": "float", "density": "float", "h": "float",
                    "n_dofs": "int", "n_contact": "int", "modes": "int", "seconds": "float",
-                   "element": "element", "case_name": "str", "case_toml": "str",
+                   "element": "element", "case_name": "str", "case_toml": "toml",
                    "warnings": "texts", "notes": "texts",
                    **{f"{what}_{d}": "number" for what in ("flutter", "divergence")
                       for d in ("positive", "negative")}}
-PATH_ATTRS = {"case_name": "str", "case_toml": "str", "parameter": "str", "range": "range",
+PATH_ATTRS = {"case_name": "str", "case_toml": "toml", "parameter": "str", "range": "range",
               "friction": "number", "node": "int", "n_dofs": "int", "n_contact": "int",
               "seconds": "float", "notes": "texts", "counts": "json"}
+KIND_WORDS = {"str": "printable text", "toml": "TOML text (printable characters and line breaks)",
+              "texts": "a list of printable texts", "json": "JSON (with printable strings)",
+              "element": "an element name", "float": "a finite number", "int": "an integer"}
 ATTRS = {"solve": SOLVE_ATTRS, "sweep": SWEEP_ATTRS, "stability": STABILITY_ATTRS,
          "path": PATH_ATTRS}
 PARAMETERS = ("friction", "load")  # as critfric.multiplicity.pathresult
@@ -60,7 +65,7 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
     version = int(version)
     for name, want in ATTRS[kind].items():
         if not _attr_ok(f.attrs.get(name), want):
-            raise bad(f"attribute {name!r}", f"missing or not {want}")
+            raise bad(f"attribute {name!r}", f"missing or not {KIND_WORDS.get(want, want)}")
 
     def dataset(name: str, dtype: str, ndim: int, width=None) -> np.ndarray:
         obj = f.get(name)
@@ -343,7 +348,8 @@ def _attr_ok(value, want: str) -> bool:
         value = value.item()
     if want == "texts":  # a list of strings; JSON text in version-1 files
         if isinstance(value, np.ndarray):
-            return value.ndim == 1 and value.dtype.kind in "OSU"
+            return value.ndim == 1 and value.dtype.kind in "OSU" \
+                and all(_printable(v) for v in value.tolist())
         want = "json"
     if want == "range":  # two finite floats
         return isinstance(value, np.ndarray) and value.shape == (2,) \
@@ -360,9 +366,24 @@ def _attr_ok(value, want: str) -> bool:
     text = _text(value)
     if want == "element":
         return text in NAMES
+    if want == "toml":
+        return _printable(text.replace("\n", " ").replace("\t", " ").replace("\r", " "))
     if want == "json":
         try:
-            json.loads(text)
+            return _printable(json.loads(text))
         except ValueError:
             return False
+    return _printable(text)
+
+
+def _printable(value) -> bool:
+    """True if every string in ``value`` (a string, bytes, or JSON data) is printable."""
+    if isinstance(value, bytes):
+        value = _text(value)
+    if isinstance(value, str):
+        return value.isprintable()
+    if isinstance(value, dict):
+        return all(_printable(k) and _printable(v) for k, v in value.items())
+    if isinstance(value, list):
+        return all(_printable(v) for v in value)
     return True

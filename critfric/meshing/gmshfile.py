@@ -338,7 +338,9 @@ def check_file(case, *, trust_geo: bool = False) -> Path:
 
     path = geometry_file(case)
     if not path.is_file():
-        raise CaseError(f"got {case.geometry['file']!r}: no such file ({path}); allowed: an "
+        what = ("no such file" if not path.exists() else "a directory" if path.is_dir()
+                else "not a regular file (a device, pipe or socket)")
+        raise CaseError(f"got {case.geometry['file']!r}: {what} ({path}); allowed: an "
                         "existing gmsh .msh or .geo file", file=case.source, key="geometry.file")
     if path.suffix.lower() == ".geo" and not trust_geo:
         check_geo(path, _decode(read_input(path), path))

@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from helpers import SQUARE_GEO, assert_refused, folder_files, run_cli, run_file_case
+from helpers import FILE_CASE, SQUARE_GEO, assert_refused, folder_files, run_cli, run_file_case
 
 from critfric.meshing import geoscript, sandbox
 
@@ -135,6 +135,21 @@ def test_garbage_msh_is_a_message(tmp_path, content):
     _refused(res, tmp_path, before, "body.msh")
 
 
+@pytest.mark.parametrize("kind", ["pipe", "device"])
+def test_a_geometry_file_that_is_no_regular_file_is_refused_unopened(tmp_path, kind):
+    import os
+
+    (tmp_path / "case.toml").write_text(FILE_CASE.format(file="body.msh"))
+    if kind == "pipe":
+        os.mkfifo(tmp_path / "body.msh")  # opening it would wait for a writer forever
+    else:
+        (tmp_path / "body.msh").symlink_to("/dev/zero")  # reading it would never end
+    res = run_cli("solve", tmp_path / "case.toml", "-o", tmp_path / "out.h5")
+    assert res.exit_code == 2 and res.output.count("critfric: error:") == 1, res.output
+    assert "geometry.file" in res.output and "not a regular file" in res.output, res.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["body.msh", "case.toml"]
+
+
 # ------------------------------------------------------------------------- files at risk
 def test_an_output_that_is_an_input_is_refused(tmp_path):
     case = tmp_path / "case.toml"
@@ -220,6 +235,12 @@ def test_a_full_disk_is_exit_1_and_leaves_the_old_file(tmp_path):
      ["nested more than"]),
     ("a tiny size", '[geometry]\nshape = "square"\n[mesh]\nsize = 1e-300\n',
      ["mesh.size", "magnitude"]),
+    ("terminal escapes in the title", ('title = "\\u001b]0;owned\\u0007\\u001b[2J"\n'
+                                       '[geometry]\nshape = "square"\n'),
+     ["title", "printable", "\\x1b"]),
+    ("a control character in an edge name", ('[geometry]\nshape = "square"\n[boundary]\n'
+                                             'contact = ["bottom\\u0007"]\n'),
+     ["boundary.contact", "printable"]),
 ])
 def test_hostile_case_files_are_refused_with_a_message(tmp_path, what, text, words):
     case = tmp_path / "case.toml"
@@ -271,6 +292,9 @@ SOLVE_EDITS = {
     "cells past the nodes": lambda f: _replace(f, "mesh/cells", np.array([[0, 1, 99]])),
     "no mesh": lambda f: f.__delitem__("mesh"),
     "bad json": lambda f: f.attrs.__setitem__("warnings", "[oops"),
+    "terminal escapes in the name": lambda f: f.attrs.__setitem__("case_name",
+                                                                  "\x1b]0;owned\x07\x1b[2J"),
+    "terminal escapes in a note": lambda f: f.attrs.__setitem__("notes", ["\x1b[31mred"]),
 }
 
 
@@ -290,6 +314,8 @@ SWEEP_EDITS = {
     "1-D positives": lambda f: _replace(f, "points/positive", np.zeros(2)),
     "an unknown element": lambda f: _replace(f, "points/element", np.array([b"P9", b"P9"])),
     "grid not json": lambda f: f.attrs.__setitem__("grid", "{"),
+    "terminal escapes in the grid": lambda f: f.attrs.__setitem__(
+        "grid", '{"element": ["\\u001b[2J"]}'),
 }
 
 
