@@ -101,6 +101,37 @@ def path(value):
     return value
 
 
+def case_output(section):
+    """The ``[output]`` table as a case file gives it (before command-line overrides): its
+    ``file`` a relative path inside the working directory (no absolute path, no '..', no
+    '~') ending in .h5, so that a case from elsewhere cannot direct the result onto a file
+    outside it."""
+    if not isinstance(section, dict) or not isinstance(section.get("file"), str):
+        return section  # the schema says what is wrong with it
+    value = section["file"]
+    try:
+        path(value)
+    except Bad as bad:
+        raise BadEntry(str(bad), "file", value) from None
+    parts = value.replace("\\", "/").split("/")
+    if (value.startswith(("/", "~")) or ".." in parts or ":" in parts[0]
+            or not value.lower().endswith(".h5") or not value.isprintable()):
+        raise BadEntry("a relative path ending in .h5, inside the working directory (no "
+                       "absolute path, '..' or '~'; the command line's --output may go "
+                       "anywhere)", "file", value)
+    return section
+
+
+def portable(raw: dict) -> dict:
+    """``raw`` without an ``[output] file`` that :func:`case_output` would refuse (one given
+    on the command line), so that the TOML of the effective case can be run again."""
+    try:
+        case_output(raw.get("output"))
+    except Bad:
+        return {**raw, "output": {k: v for k, v in raw["output"].items() if k != "file"}}
+    return raw
+
+
 def names(value):
     if isinstance(value, str):
         value = [value]

@@ -205,8 +205,9 @@ class Case:
     path: dict = field(default_factory=dict)
 
     def to_toml(self) -> str:
-        """The effective case (overrides applied) as TOML: re-running it gives the same run."""
-        return tomli_w.dumps(self.raw)
+        """The effective case (overrides applied) as TOML: re-running it gives the same run
+        (an --output outside the working directory left out: the re-run writes its default)."""
+        return tomli_w.dumps(c.portable(self.raw))
 
     def inputs(self) -> list[Path]:
         """The files this case reads: the case file itself and its gmsh file, if any."""
@@ -332,9 +333,9 @@ def from_dict(raw: dict, *, source: str = "<dict>", name: str = "case", text: st
               overrides: dict[str, Any] | None = None) -> Case:
     """Validate a parsed case dict; return a :class:`Case` with all defaults filled."""
     if not isinstance(raw, dict):
-        raise CaseError(f"got a {type(raw).__name__}; allowed: a table of sections",
-                        file=source)
-    if overrides:
+        raise CaseError(f"got a {type(raw).__name__}; allowed: a table of sections", file=source)
+    _check(c.Key(c.case_output, None, ""), raw.get("output"), source, "output")
+    if overrides:  # (--output may go anywhere; the case file's own [output] file may not)
         raw = _apply_overrides(raw, overrides, source)
     _check_numbers(raw, source, "")
     for key in raw:

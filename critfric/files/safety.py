@@ -188,6 +188,9 @@ def check_output(path: Path, *, force: bool = False, inputs=(),
     if path.is_dir():
         raise CaseError("is a directory; allowed: a file path",
                         file=str(path), key=key)
+    if path.exists() and not path.is_file():  # replacing it would remove a device or pipe
+        raise CaseError("is not a regular file (a device, pipe or socket); allowed: a path to "
+                        "a regular file or to none", file=str(path), key=key)
     if path.exists() and not force:
         raise CaseError("exists already; pass --force to overwrite it", file=str(path),
                         key=key)

@@ -84,6 +84,37 @@ def test_a_result_is_never_written_over_a_link(tmp_path):
         assert _files(tmp_path) == before
 
 
+def test_a_result_never_replaces_a_pipe_or_a_device(tmp_path):
+    import os
+    import stat
+
+    os.mkfifo(tmp_path / "pipe.h5")
+    targets = ["pipe.h5"]
+    if os.geteuid() == 0:  # a copy of /dev/null: --force must not turn it into a file
+        os.mknod(tmp_path / "null.h5", stat.S_IFCHR | 0o666, os.makedev(1, 3))
+        targets.append("null.h5")
+    for name in targets:
+        _refused(run_cli("solve", "one-triangle", "-o", tmp_path / name, "--force"), name,
+                 "not a regular file")
+        assert not (tmp_path / name).is_file()
+
+
+def test_a_case_file_cannot_send_its_result_out_of_the_working_directory(tmp_path):
+    for target in ("/tmp/critfric-escape.h5", "../escape.h5", "~/escape.h5", "a/../../x.h5",
+                   "notes.txt"):
+        case = tmp_path / "case.toml"
+        case.write_text(f'[geometry]\nshape = "square"\n[output]\nfile = "{target}"\n')
+        _refused(run_cli("solve", case, "--force"), "output.file", "relative path")
+    # the command line may, and the result's TOML runs again (without that output)
+    out = tmp_path / "elsewhere.h5"
+    assert run_cli("solve", "one-triangle", "-o", out).exit_code == 0
+    import h5py
+
+    from critfric.case.schema import loads_case
+    with h5py.File(out) as f:
+        assert loads_case(f.attrs["case_toml"]).output["file"] is None
+
+
 def test_figures_into_an_unwritable_place_name_it(tmp_path, solved):
     _refused(run_cli("solutions", "one-triangle", "--friction", "1", "--plot",
                      "/proc/critfric.png"), "/proc/critfric.png", "--plot", "cannot write")
