@@ -2,15 +2,13 @@
 
 Resources: before meshing, the node count is estimated from the domain's area A, perimeter P
 and vertex count (``nodes(h) = k (A / (c h^2) + P / (2 h) + n_v)``, c = sqrt(3)/2 for
-triangles and 1 for quads, k = 4 for P2/Q2), the DOFs are twice that, and the peak memory of
-a solve is ``BASE_BYTES + BYTES_PER_DOF_LOG * n log2 n`` (sparse LU fill with SuperLU:
-fitted to P1, P2, Q1 and Q2 unit squares near 1e5 DOFs and to 1e6 DOFs, conservative by
-15-30%; the faster backends need less). 3D bodies (the node count from
-:class:`critfric.meshing.solid.SolidFootprint`, three DOFs a node) fill far more: their
-estimate is per backend and element, from the fill of the factor (~ n^1.45) and the 3p x 3p
-Schur complement of the dense eigen path (:func:`memory_estimate`). A solve above the
-memory available (or above ``max_dofs`` when given) is a :class:`CaseError` that gives the
-estimate and the finest mesh size that fits.
+triangles and 1 for quads, k = 4 for P2/Q2), the DOFs are twice that (three times a node in
+3D, from :class:`critfric.meshing.solid.SolidFootprint`), and the peak memory of a solve is
+a model per backend and element fitted to measured peaks (:func:`memory_estimate`; 2D at
+MODEL_2D: 1.05-1.13 x the peaks of P1/P2 unit squares from 0.1 to 4.2 M DOFs on PARDISO,
+1.05-1.22 x on SciPy; 3D at FILL_3D). A solve above the memory available (or above
+``max_dofs`` when given) is a :class:`CaseError` that gives the estimate and the finest mesh
+size that fits.
 
 Interrupts: :class:`interrupt_guard` makes sure a Ctrl-C is honoured at the next safe point.
 
@@ -32,9 +30,31 @@ from .errors import CaseError
 from .fem.elements import get_element
 from .fem.mesh import shoelace
 
-BYTES_PER_DOF_LOG = 250.0
-BASE_BYTES = 150e6
-DENSE_COPIES = 6  # dense stage: S, its Cholesky factor, T, eigenvectors, workspace
+DENSE_COPIES = 6  # 2D dense stage: S, its Cholesky factor, T, eigenvectors, workspace
+SPLIT_MIN_ROWS = 400_000  # SciPy's Schur complement by substructuring from here on (memory)
+
+#: 2D: peak bytes of a solve with n DOFs and p contact nodes, fitted to the peak RSS of
+#: `critfric solve unit-square` (benchmarks/memory2d.py, 60 runs in benchmarks/memory2d.csv:
+#: P1 and P2 from 0.1 to 4.2 M DOFs, Q1 and Q2 from 0.1 to 2.1 M, both backends):
+#: MODEL_2D[backend][element] = (base, per DOF, fill) gives base + per DOF n (mesh, assembly,
+#: vectors) + fill n log2 n (the factor in a nested-dissection order), plus the dense stage
+#: (:func:`dense_bytes`). SciPy's one factorization of the whole ("scipy whole", below
+#: SPLIT_MIN_ROWS: :func:`model_key_2d`) needs more than its Schur complement by pieces above
+#: (0.97 against 1.15 GB at 0.55 and 0.38 M DOFs, P1). Linear programming (memory2d.py
+#: --fit): every estimate, from the DOFs and contact nodes predicted before meshing and from
+#: the mesh made, at least 1.05 x its peak (repeat runs differ by up to 1.5% on PARDISO, 5%
+#: on SciPy), the largest ratio least. Before meshing, the estimates are 1.05-1.13 x the
+#: peaks of P1 and P2 on PARDISO, 1.05-1.22 x on SciPy, 1.05-1.25 x for Q1 and Q2 (whose
+#: DOF count is estimated up to 18% low); from the mesh made, 1.05-1.29 x. The same fit to
+#: the runs up to 2.2 M DOFs alone gave 1.06-1.23 x the four peaks at 4.18 M (P1, P2).
+MODEL_2D = {
+    "pardiso": {"P1": (132e6, 1980.0, 3.79), "P2": (183e6, 1270.0, 62.6),
+                "Q1": (193e6, 178.0, 115.0), "Q2": (204e6, 3260.0, 0.0)},
+    "scipy": {"P1": (194e6, 866.0, 37.2), "P2": (142e6, 2940.0, 0.0),
+              "Q1": (227e6, 1930.0, 0.0), "Q2": (524e6, 2980.0, 0.0)},
+    "scipy whole": {"P1": (102e6, 162.0, 159.0), "P2": (38.1e6, 4360.0, 0.0),
+                    "Q1": (0.0, 3890.0, 9.75), "Q2": (74.9e6, 0.0, 222.0)},
+}
 _CELL_AREA = {"triangle": math.sqrt(3) / 2, "quad": 1.0}  # cell area / size^2
 
 #: 3D: peak bytes of a solve with n DOFs and p contact nodes, fitted to the peak RSS of
@@ -151,7 +171,7 @@ def available_memory() -> float:
 
 
 def estimated_backend(backend: str | None = None) -> str:
-    """The sparse solver a 3D estimate models: ``backend`` as a case names it; "auto" (or
+    """The sparse solver an estimate models: ``backend`` as a case names it; "auto" (or
     None) is PARDISO wherever its ``pypardiso`` wheel is installed (what
     :func:`critfric.solvers.backends.resolve_backend` picks; MKL is not loaded here), else
     SciPy."""
@@ -160,24 +180,43 @@ def estimated_backend(backend: str | None = None) -> str:
     return backend if backend in DENSE_BYTES_3D else "scipy"
 
 
+def dense_bytes(n_contact: float, *, dim: int = 2, backend: str | None = None) -> float:
+    """Bytes of the dense eigen stage on ``n_contact`` contact nodes: the dim p x dim p Schur
+    complement where the dense path may form it (dim p <= DENSE_MAX_ROWS, critfric.solvers.
+    eigen's 2 SCHUR_MAX_CONTACT; beyond, ARPACK), about DENSE_COPIES copies in 2D (S, its
+    Cholesky factor, the pencil, eigenvectors, LAPACK workspace), DENSE_BYTES_3D a row^2 in 3D."""
+    rows = dim * float(n_contact)
+    if rows > DENSE_MAX_ROWS:
+        return 0.0
+    per = DENSE_BYTES_3D[estimated_backend(backend)] if dim == 3 else DENSE_COPIES * 8.0
+    return per * rows * rows
+
+
+def model_key_2d(backend: str, n_dofs: float) -> str:
+    """The row of MODEL_2D for ``backend`` at ``n_dofs``: SciPy's Schur complement comes from
+    one factorization of the whole below SPLIT_MIN_ROWS free DOFs ("scipy whole", which needs
+    more), taken up to 1.1 SPLIT_MIN_ROWS DOFs: a margin for the held DOFs, which the solver
+    does not count, and for an estimate before meshing above the mesh's count."""
+    whole = backend == "scipy" and n_dofs < 1.1 * SPLIT_MIN_ROWS
+    return "scipy whole" if whole else backend
+
+
 def memory_estimate(n_dofs: float, n_contact: float = 0.0, *, dim: int = 2,
                     element: str = "P1", backend: str | None = None) -> float:
     """Peak bytes of a solve with ``n_dofs`` degrees of freedom and ``n_contact`` contact
-    nodes. 2D: the sparse factorization, plus the dense stage (the 2p x 2p Schur complement
-    and the p x p pencil with its eigenvectors and LAPACK workspace, about DENSE_COPIES
-    copies). 3D (``dim`` 3): the fitted model of ``element`` on ``backend``
-    (:func:`estimated_backend`) described at FILL_3D."""
+    nodes, with ``element`` on ``backend`` (:func:`estimated_backend`): the fitted model of
+    MODEL_2D (2D) or FILL_3D (``dim`` 3), plus the dense stage (:func:`dense_bytes`)."""
     n = max(float(n_dofs), 2.0)
     if not (math.isfinite(n) and math.isfinite(n_contact)):
         return math.inf
+    b = estimated_backend(backend)
+    dense = dense_bytes(n_contact, dim=dim, backend=b)
     if dim == 3:
-        b, rows = estimated_backend(backend), 3.0 * n_contact
-        dense = DENSE_BYTES_3D[b] * rows * rows if rows <= DENSE_MAX_ROWS else 0.0
         with np.errstate(over="ignore"):
             fill = FILL_3D[b][element] * np.float64(n) ** FILL_EXPONENT_3D
         return float(BASE_BYTES_3D + PER_DOF_3D[element] * n + fill + dense)
-    dense = DENSE_COPIES * 8.0 * (2.0 * n_contact) ** 2
-    return BASE_BYTES + BYTES_PER_DOF_LOG * n * math.log2(n) + dense
+    base, per_dof, fill = MODEL_2D[model_key_2d(b, n)][element]
+    return base + per_dof * n + fill * n * math.log2(n) + dense
 
 
 def dofs_that_fit(memory: float, *, contact=None, **model) -> float:

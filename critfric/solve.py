@@ -181,10 +181,10 @@ def _junctions(case: Case, poly) -> np.ndarray:
     return state_junctions(c["rules"], c["default"], case.solve["gamma"], length)
 
 
-def _checked_polygon(case: Case, max_dofs: int | None):
-    """The polygon of a case, after the resource guard on the mesh it will give (grading
-    and the dense stage on the contact nodes counted)."""
-    poly = geometry_polygon(case)
+def polygon_estimate(case: Case, poly=None) -> tuple[float, float]:
+    """The DOFs and contact nodes the mesh of a polygon case will have, estimated before
+    meshing (grading counted): what the resource guard is given."""
+    poly = geometry_polygon(case) if poly is None else poly
     m = case.mesh
     h, element, g = m["size"], m["element"], m["grading"]
     footprint = polygon_footprint(poly.vertices)
@@ -204,9 +204,19 @@ def _checked_polygon(case: Case, max_dofs: int | None):
         dofs += 2.0 * footprint.graded_nodes(h, element, g, radius, points=sectors)
         sides = 2 + 2 * len(sing.junctions)  # graded stretches of Gamma_C
         n_contact += order * sides * radius * math.log(1 / g) / (h * (1 - g))
-    check_dofs(dofs, element=element, what=f"mesh.size = {h:g}"
+    return dofs, n_contact
+
+
+def _checked_polygon(case: Case, max_dofs: int | None):
+    """The polygon of a case, after the resource guard on the mesh it will give (grading
+    and the dense stage on the contact nodes counted)."""
+    poly = geometry_polygon(case)
+    h, g = case.mesh["size"], case.mesh["grading"]
+    dofs, n_contact = polygon_estimate(case, poly)
+    check_dofs(dofs, element=case.mesh["element"], what=f"mesh.size = {h:g}"
                + (f" graded by {g:g}" if g is not None else ""), source=case.source,
-               footprint=footprint, max_dofs=max_dofs, n_contact=n_contact)
+               footprint=polygon_footprint(poly.vertices), max_dofs=max_dofs,
+               n_contact=n_contact, backend=case.solve["backend"])
     return poly
 
 

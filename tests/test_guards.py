@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import math
 import os
 import signal
@@ -13,9 +14,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from helpers import cli_process, run_cli
+from helpers import cli_process, run_cli, square_case
 
-from critfric import prepare, read_summary, solve_case
+from critfric import guards, prepare, read_summary, solve_case
 from critfric.case.schema import loads_case
 from critfric.errors import CaseError
 from critfric.files.safety import atomic_h5, interrupt_guard, output_lock
@@ -28,8 +29,10 @@ from critfric.guards import (
 )
 from critfric.meshing.geometry import polygon, rectangle
 from critfric.meshing.mesh import build_mesh
+from critfric.solve import polygon_estimate, preflight
 
 L_SHAPE = [[0, 0], [2, 0], [2, 1], [1, 1], [1, 2], [0, 2]]
+MEASURED = Path(__file__).resolve().parent.parent / "benchmarks" / "memory2d.csv"
 
 
 # ------------------------------------------------------------------------ estimates
@@ -60,6 +63,38 @@ def test_absurd_sizes_give_infinite_estimates_not_errors():
 def test_memory_model_and_its_inverse():
     assert memory_estimate(1e6) > memory_estimate(1e5) > memory_estimate(1e4)
     assert memory_estimate(dofs_that_fit(8e9)) == pytest.approx(8e9, rel=1e-6)
+
+
+def test_the_2d_model_is_within_30_percent_above_every_measured_peak():
+    rows = list(csv.DictReader(MEASURED.read_text().splitlines()))
+    for backend in ("pardiso", "scipy"):
+        for element in ("P1", "P2"):
+            dofs = [float(r["n_dofs"]) for r in rows
+                    if (r["backend"], r["element"]) == (backend, element)]
+            assert min(dofs) < 1.1e5 and max(dofs) > 3.9e6, (backend, element)
+    for r in rows:
+        peak = float(r["peak_mb"]) * 1e6
+        model = {"element": r["element"], "backend": r["backend"]}
+        before = memory_estimate(float(r["est_dofs"]), float(r["est_contact"]), **model)
+        made = memory_estimate(float(r["n_dofs"]), float(r["n_contact"]), **model)
+        assert peak <= before <= 1.3 * peak and peak <= made <= 1.3 * peak, r
+
+
+def test_the_guard_before_meshing_models_the_cases_backend(monkeypatch):
+    case = loads_case(square_case(size=0.0035), source="sq.toml")  # ~0.19 M DOFs
+    dofs, contact = polygon_estimate(case)
+    need = {b: memory_estimate(dofs, contact, backend=b) for b in ("pardiso", "scipy")}
+    assert need["pardiso"] < need["scipy"]  # SuperLU's whole factor below SPLIT_MIN_ROWS
+    monkeypatch.setattr(guards, "available_memory", lambda: sum(need.values()) / 2)
+    preflight(case.with_overrides({"solve.backend": "pardiso"}))  # fits: no error
+    with pytest.raises(CaseError, match=r"sq\.toml.*mesh\.size = 0\.0035.*of memory"):
+        preflight(case.with_overrides({"solve.backend": "scipy"}))
+    auto = case.with_overrides({"solve.backend": "auto"})
+    if guards.estimated_backend("auto") == "scipy":
+        with pytest.raises(CaseError):
+            preflight(auto)
+    else:
+        preflight(auto)
 
 
 def test_check_dofs_gives_the_estimate_and_the_size_that_fits():

@@ -33,14 +33,14 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..errors import SolverError
-from ..guards import usable_cpus
+from ..guards import SPLIT_MIN_ROWS, usable_cpus
 from .pardiso import SINGULAR as _SINGULAR
 from .pardiso import PardisoFactor, PardisoPlan, pardiso_library, symmetrize
 from .superlu import trailing_blocks
 
 BACKENDS = ("scipy", "pardiso")
-SPLIT_MIN_ROWS = 400_000  # SciPy's Schur complement by substructuring from here on (memory)
-#: ... or from this many Schur rows on: SuperLU factors the dense trailing block of k rows
+#: SciPy substructures from SPLIT_MIN_ROWS rows (guards: the memory model depends on it) or
+#: from this many Schur rows on: SuperLU factors the dense trailing block of k rows
 #: itself, slowly (3D P1 box, k = 4311 / 5790 / 9051 at 47 k / 76 k / 144 k DOFs: 21.6 / 68 /
 #: 361 s and 2.5 / 4.5 / 11.1 GB in one factorization, 17.1 / 52 / 283 s and 2.2 / 3.8 /
 #: 8.6 GB substructured; at k = 2367, 20 k DOFs, 3.9 against 7.0 s)
