@@ -85,7 +85,7 @@ def test_the_guard_before_meshing_models_the_cases_backend(monkeypatch):
     dofs, contact = polygon_estimate(case)
     need = {b: memory_estimate(dofs, contact, backend=b) for b in ("pardiso", "scipy")}
     assert need["pardiso"] < need["scipy"]  # SuperLU's whole factor below SPLIT_MIN_ROWS
-    monkeypatch.setattr(guards, "available_memory", lambda: sum(need.values()) / 2)
+    monkeypatch.setattr(guards, "available_memory", lambda *a: sum(need.values()) / 2)
     preflight(case.with_overrides({"solve.backend": "pardiso"}))  # fits: no error
     with pytest.raises(CaseError, match=r"sq\.toml.*mesh\.size = 0\.0035.*of memory"):
         preflight(case.with_overrides({"solve.backend": "scipy"}))

@@ -54,7 +54,7 @@ def test_the_3d_model_grows_and_inverts():
 
 
 def test_a_solid_footprint_selects_the_3d_model(monkeypatch):
-    monkeypatch.setattr(guards, "available_memory", lambda: 8e9)
+    monkeypatch.setattr(guards, "available_memory", lambda *a: 8e9)
     footprint = SolidFootprint(0.5, 4.0, 10.0, 8)  # the box 1 x 0.5 x 1
     h = 0.01  # ~1.1 M DOFs: below 8 GB in 2D's model, far above in 3D's
     n = footprint.dofs(h, "P1")

@@ -63,7 +63,7 @@ def test_scripts_that_never_end_or_mesh_too_much_are_stopped_within_seconds(tmp_
 
 def test_a_small_memory_limit_stops_a_size_field_within_seconds(tmp_path, monkeypatch):
     """No --max-dofs: the memory available sets the allowance the meshing child is held to."""
-    monkeypatch.setattr(guards, "available_memory", lambda: 200e6)
+    monkeypatch.setattr(guards, "available_memory", lambda *a: 200e6)
     text = SCRIPTS["a size field in the interior"][0]
     res, before, seconds = _run(tmp_path, "body.geo", SQUARE_GEO + text)
     _refused(res, tmp_path, before, "stopped", "the memory available")
