@@ -74,6 +74,7 @@ def _constants() -> dict[str, str]:
         "safety_few": f"{x.SAFETY_FEW:g}",
         "max_relative_error": f"{100 * x.MAX_RELATIVE_ERROR:g}%",
         "erratic": f"{100 * x.ERRATIC:g}%",
+        "chain_tol": f"{100 * x.CHAIN_TOL:g}%",
         "error_floor": f"{x.ERROR_FLOOR:g}",
         "sweep_grading": f"{SWEEP_GRADING:g}",
         "nest_fraction": f"1/{round(1 / NEST_FRACTION)}",

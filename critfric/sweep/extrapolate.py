@@ -56,6 +56,7 @@ FIT_SIZES = 4  # the fit uses the finest this many sizes
 SAFETY = 1.25  # error = SAFETY x the extrapolation correction (4+ sizes, order below the cap)
 SAFETY_FEW = 3.0  # ... with 3 sizes, or an order at the element's cap
 MAX_RELATIVE_ERROR = 1.5e-2  # a larger error estimate (relative to the limit): not converged
+CHAIN_TOL = 0.02  # a family followed from size to size takes the nearest value within 2%
 ERRATIC = 0.15  # values of one element that swing by more than this over its three finest
 #                 sizes: the family is mesh-dependent, for every element at that nu
 _ORDERS = 400  # orders scanned by the fit
@@ -79,6 +80,7 @@ class Limit:
     n_sizes: int
     status: str  # "ok" or "not converged: <why>"
     slip_angle: float | None = None  # the angle of a sweep over slip angles
+    note: str = ""  # how the family was found, when not as the lowest value of each size
 
     def to_json(self) -> dict:
         def num(v):
@@ -86,7 +88,8 @@ class Limit:
 
         out = {"nu": self.nu, "element": self.element, "family": self.family,
                "limit": num(self.limit), "order": num(self.order), "error": num(self.error),
-               "n_sizes": self.n_sizes, "status": self.status}
+               "n_sizes": self.n_sizes, "status": self.status,
+               **({"note": self.note} if self.note else {})}
         return out if self.slip_angle is None else {**out, "slip_angle": self.slip_angle}
 
     def to_row(self) -> dict:
@@ -230,13 +233,52 @@ def limits_of(rows: list[dict], minima: list[dict] = ()) -> list[Limit]:
         for family in families:
             f = [r[family][0] if r["status"] == "ok" and r[family] else math.nan for r in rs]
             limit, p, err, status = family_limit(h, f, element)
-            out.append(Limit(nu, element, family, limit, p, err, len(rs), status, angle))
+            note = ""
+            if status != "ok":  # eigenvalues of the singular points below a family?
+                values = [list(r[family]) if r["status"] == "ok" else [] for r in rs]
+                limit, p, err, status, note = _followed(h, values, element) or (
+                    limit, p, err, status, "")
+            out.append(Limit(nu, element, family, limit, p, err, len(rs), status, angle,
+                             note))
             swing = _swing(h, f)
             if swing > ERRATIC:
                 erratic[nu, angle, family] = (f"{element} swings by {swing:.0%} over its three "
                                               "finest sizes")
     _flag_disagreement(out, erratic)
     return out
+
+
+def _followed(h, values, element):
+    """The lowest family that converges when each value at the finest size is followed to
+    the coarser ones (at each, the value nearest it, within ``CHAIN_TOL``): (limit, order,
+    error, "ok", note naming the lower values passed over), or None if none converges.
+
+    Strong grading makes eigenvalues of the singular points' own (infinite-dimensional)
+    problem appear, below the body's ones at the finer sizes, and they fall with every
+    halving (docs/validation.md, "Strong grading"); the lowest value of each size then mixes
+    two families and does not converge, where the body's family, followed, does."""
+    order = np.argsort(-np.asarray(h, dtype=float))
+    hs = np.asarray(h, dtype=float)[order]
+    vs = [np.asarray([v for v in values[i] if math.isfinite(v)]) for i in order]
+    best = None
+    for start in vs[-1][1:]:
+        chain, passed, current = [], [], start
+        for v in vs[::-1]:  # finest to coarsest
+            k = int(np.argmin(np.abs(v - current))) if len(v) else -1
+            if k < 0 or abs(v[k] - current) > CHAIN_TOL * abs(current):
+                break
+            current = float(v[k])
+            chain.append(current)
+            passed += [float(x) for x in v[:k]]
+        if len(chain) < 3:
+            continue
+        n = len(chain)
+        limit, p, err, status = family_limit(hs[-n:], chain[::-1], element)
+        if status == "ok" and (best is None or abs(limit) < abs(best[0])):
+            note = ("followed from size to size: lower values of the singular points left "
+                    "out (" + ", ".join(f"{x:.6g}" for x in passed) + ")")
+            best = (limit, p, err, status, note)
+    return best
 
 
 def _swing(h, f) -> float:

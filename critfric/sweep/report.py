@@ -70,5 +70,6 @@ def report_sweep(sweep) -> str:
         angle = f"{_num(lim.slip_angle, '%.4g'):>8} " if angles else ""
         lines.append(f"{lim.nu:>7.4g} {lim.element:<7} {angle}{lim.family:<8} "
                      f"{_num(lim.limit, '%.10f'):>14} {_num(lim.error, '%.1e'):>9} "
-                     f"{_num(lim.order, '%.2f'):>5}  {lim.status}")
+                     f"{_num(lim.order, '%.2f'):>5}  {lim.status}"
+                     + (f" ({lim.note})" if lim.note else ""))
     return "\n".join(lines)

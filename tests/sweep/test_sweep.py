@@ -325,3 +325,23 @@ def test_a_family_one_element_finds_erratic_gets_no_limit_from_another():
     p1 = _rows("P1", [8.345, 8.3434, 8.3428, 8.3426])
     steady = [lim for lim in limits_of(q1 + p1) if lim.family == "positive"]
     assert next(lim for lim in steady if lim.element == "Q1").status == "ok"
+
+
+def test_eigenvalues_of_strong_grading_below_a_family_are_left_out():
+    """Measured: unit square, Q2, nested meshes graded as h (1e-4 + (d/R)^(3/4)): from
+    h = 0.025 on, eigenvalues of the slip | free corner (1.9315, 1.8908, falling towards
+    1.5686 with each halving) come below the body's 1.9447114, which converges."""
+    h = [0.1, 0.05, 0.025, 0.0125]
+    values = [[1.94470978683, 2.02821373219, 2.14431075747],
+              [1.94471132284, 2.01415587299, 2.01568514844],
+              [1.93150035833, 1.94471143655, 2.0009256652],
+              [1.89078430106, 1.94471144227, 1.95118084973]]
+    rows = [{"nu": 0.3, "size": s, "element": "Q2", "status": "ok", "positive": v,
+             "negative": []} for s, v in zip(h, values)]
+    (lim,) = [lim for lim in limits_of(rows) if lim.family == "positive"]
+    assert lim.status == "ok" and abs(lim.limit - 1.94471145) <= lim.error + 3e-8 < 1e-7
+    assert "1.89078" in lim.note and "1.9315" in lim.note and "note" in lim.to_json()
+    # the lowest values alone do not converge; with one value a size, nothing is followed
+    lowest = [{**r, "positive": r["positive"][:1]} for r in rows]
+    (alone,) = [lim for lim in limits_of(lowest) if lim.family == "positive"]
+    assert alone.status.startswith("not converged") and alone.note == ""
