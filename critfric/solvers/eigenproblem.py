@@ -300,7 +300,8 @@ def finish(prob: Problem, alpha, real, index, phis_of, count, method, n_inf, app
             raise SolverError(
                 f"the eigenvector of alpha = {alpha[j].real:.10g} has relative residual "
                 f"{mode.residual:.2e} > {RESIDUAL_TOL:g} ({method} path); the system is too "
-                "ill-conditioned (nu very near 0.5?): try "
+                "ill-conditioned (nu very near 0.5, or cells of very different sizes: "
+                "edges far shorter than the mesh size?): try "
                 + ("method = 'arpack', " if method == "dense" else "method = 'dense', ")
                 + "P2/Q2 elements or a tighter [solve] tol")
         modes.append(mode)
