@@ -190,6 +190,19 @@ class PardisoFactor:
             self._iparm[11] = 0
         return x.T
 
+    def refactor(self, A: sp.spmatrix) -> bool:
+        """Factor A in place of this general matrix's values, on its analysis (phase 22 only:
+        the ordering, scaling and matching of the analysed values), if A has its pattern;
+        False (nothing done) otherwise. The caller checks its solves' residuals."""
+        if self.mtype != 11:
+            return False
+        A = sp.csr_matrix(A)
+        A.sort_indices()
+        if not (np.array_equal(A.indptr, self._ia) and np.array_equal(A.indices, self._ja)):
+            return False
+        self._numeric(A.data)
+        return True
+
     def extend(self, xc: np.ndarray) -> np.ndarray:
         xc = np.asarray(xc, dtype=np.float64)
         b = np.zeros(xc.shape[1:][::-1] + (self.shape[0],))

@@ -2,8 +2,10 @@
 
 For each sliding direction (the state's own, f > 0, and the opposite one, f < 0) the
 ``modes`` lowest free-vibration branches kappa(f) = -s(f)^2 are followed from friction 0
-(:mod:`.locus`), the first coalescence is located on the reduced model and found on the
-full pencil by Newton's method (:mod:`.fold`). Divergence (kappa = 0) happens exactly at the
+(:mod:`.locus`), the first coalescence is located and sharpened on the reduced model and
+found on the full pencil by Newton's method (:mod:`.fold`). One factorization of K_rr
+serves the modes, the reduced basis and the sharpening of both directions; it is freed
+before the bordered matrices are factored. Divergence (kappa = 0) happens exactly at the
 static critical coefficients, computed by the static eigen stage itself.
 """
 
@@ -160,29 +162,36 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
                         f"{int(locus.WORK_MAX / (2 * d ** 3))}) or modes",
                         key="stability.steps").located(case.source)
     order = fill_order(system, pencil.kept) if backend == "scipy" else None
-    red = locus.reduce(pencil, modes, backend=backend, order=order)
+    # one factorization of K_rr serves the modes, the reduced basis and the sharpening
+    factor = locus.factor_of(pencil, backend, order) if pencil.size > locus.FULL_MAX else None
+    red = locus.reduce(pencil, modes, backend=backend, order=order, factor=factor)
     if np.any(red.omega2[:modes] <= 0):
         raise SolverError("a free-vibration eigenvalue is not positive: check that the "
                           "Dirichlet edges hold the body")
     scale = _kappa_scale(E, rho, ell, float(red.omega2[modes - 1]), case.source)
     lo, hi = st["friction"] or _default_range(divergence)
     t3 = time.perf_counter()
-    flutter, flutter_kappa, shapes, steps, parts = {}, {}, {}, {}, []
+    flutter, flutter_kappa, shapes, steps, parts, guesses = {}, {}, {}, {}, [], {}
     for direction, end in (("negative", lo), ("positive", hi)):
+        flutter[direction] = flutter_kappa[direction] = None
         if end == 0.0:
-            flutter[direction] = flutter_kappa[direction] = None
             continue
         grid = np.linspace(0.0, end, st["steps"] + 1)
         branches = locus.follow(red, modes, grid)
         parts.append(branches)
         guess = locus.locate_flutter(red, branches)
         if guess is None:
-            flutter[direction] = flutter_kappa[direction] = None
             notes.append(f"no flutter of the {modes} lowest modes for {direction} friction "
                          f"up to |friction| = {abs(end):g}")
             continue
-        found = fold.find_fold(pencil, guess.friction, guess.kappa, guess.right, guess.left,
-                               backend=backend, order=order)
+        guesses[direction] = (guess, locus.sharpen(red, pencil, factor, guess))
+    factor = None  # K_rr's factors freed before the bordered ones are made
+    t4 = time.perf_counter()
+    solver = None
+    for direction, (guess, sharp) in guesses.items():
+        found = fold.find_fold(pencil, sharp.friction, sharp.kappa, sharp.right, sharp.left,
+                               backend=backend, order=order, solver=solver)
+        solver = found.solver
         if abs(found.friction - guess.friction) > 1e-3 * abs(guess.friction):
             warnings.append(f"the {direction} flutter onset moved from {guess.friction:.6g} "
                             f"(reduced model) to {found.friction:.6g} on the full pencil; "
@@ -191,9 +200,11 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
         flutter_kappa[direction] = float(found.kappa) * scale
         shapes[direction] = pencil.shape_xy(found.right)
         steps[direction] = found.steps
-    t4 = time.perf_counter()
+    solver = found = None
+    t5 = time.perf_counter()
     friction, kappa = _merge(parts)
-    timings = dict(prep.seconds, mass=t1 - t0, static=t2 - t1, modes=t3 - t2, branches=t4 - t3)
+    timings = dict(prep.seconds, mass=t1 - t0, static=t2 - t1, modes=t3 - t2, branches=t4 - t3,
+                   newton=t5 - t4)
     return StabilityResult(
         case=case, flutter=flutter, flutter_kappa=flutter_kappa, divergence=divergence,
         frequencies=np.sqrt(red.omega2[:modes]) * (math.sqrt(E) / math.sqrt(rho) / ell),

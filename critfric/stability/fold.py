@@ -11,16 +11,18 @@ sigma_x = -w^T L_x v with w from the transposed system. Newton's method on
 
     sigma(f, kappa) = 0,   sigma_kappa(f, kappa) = 0
 
-(a double root in kappa) converges quadratically from the reduced model's guess (3-4 steps
-from 5e-5). The first step factors the bordered matrix; the next ones solve with their own
-matrix (which moves by the Newton step, ~1e-4 and less) by iterative refinement on that LU,
-a few solves each (:class:`_Bordered`): 2 sparse LUs a direction became 1 (295 k DOFs: the
-Newton stage 18 s -> 8 s). A fresh LU is taken whenever refinement does not reach rounding.
+(a double root in kappa) converges quadratically: 3-4 steps from 5e-5, one from the
+sharpened guess of :func:`critfric.stability.locus.sharpen` (its first correction is below
+FOLD_TOL). The first step factors the bordered matrix; further ones solve with their own
+matrix (which moves by the Newton step) by iterative refinement on that LU, a few solves
+each (:class:`Bordered`); a fresh LU is taken whenever refinement does not reach rounding.
+The other direction's bordered matrix, of the same pattern, is factored on the first one's
+PARDISO analysis.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -45,6 +47,7 @@ class Fold:
     left: np.ndarray
     steps: int
     residual: float  # ||L v|| / (||L|| ||v||) at the solution
+    solver: Bordered | None = field(default=None, repr=False)  # for the next run (renewed)
 
 
 def _bordered(L: sp.spmatrix, b: np.ndarray, c: np.ndarray) -> sp.csc_matrix:
@@ -53,8 +56,11 @@ def _bordered(L: sp.spmatrix, b: np.ndarray, c: np.ndarray) -> sp.csc_matrix:
 
 
 def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
-              left: np.ndarray, *, backend: str = "scipy", order=None) -> Fold:
-    """Newton's method for the coalescence nearest (f0, kappa0); SolverError if it fails."""
+              left: np.ndarray, *, backend: str = "scipy", order=None,
+              solver: Bordered | None = None) -> Fold:
+    """Newton's method for the coalescence nearest (f0, kappa0); SolverError if it fails.
+    ``solver``: the :class:`Bordered` of an earlier call on the same pencil (the other
+    direction), whose analysis PARDISO reuses."""
     n = pencil.size
     f, kappa = float(f0), float(kappa0)
     c, b = _unit(right), _unit(left)
@@ -62,7 +68,7 @@ def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray
     e = np.zeros(n + 1)
     e[n] = 1.0
     L_kf = pencil.L_kappa_f()
-    F = _Bordered(backend, border_order)
+    F = Bordered(backend, border_order) if solver is None else solver.renewed()
     for step in range(1, MAX_STEPS + 1):
         L = pencil.L(f, kappa)
         F.set(_bordered(L, b, c))
@@ -92,14 +98,14 @@ def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray
         if abs(df) <= FOLD_TOL * max(abs(f), 1e-300) and abs(dk) <= FOLD_TOL * abs(kappa):
             L = pencil.L(f, kappa)
             res = np.linalg.norm(L @ c) / max(abs(L).max() * np.sqrt(n), 1e-300)
-            return Fold(f, kappa, c, b, step, float(res))
+            return Fold(f, kappa, c, b, step, float(res), F)
         if not (np.isfinite(f) and np.isfinite(kappa)):
             break
     raise SolverError(f"Newton's method for the flutter onset did not converge from friction "
                       f"{f0:.6g} (kappa {kappa0:.6g}); try more --steps or a finer mesh")
 
 
-class _Bordered:
+class Bordered:
     """Solves with the current bordered matrix A by iterative refinement on the LU of an
     earlier (nearby) one, or on its own; a fresh LU when refinement does not converge."""
 
@@ -107,12 +113,23 @@ class _Bordered:
         self.backend, self.order = backend, order
         self.lu = self.A = self.AT = None
         self.exact = False  # the LU is of A itself
+        self.renew = False  # the LU is of another problem: the next matrix is factored
         self.lus = 0  # factorizations taken
+
+    def renewed(self) -> Bordered:
+        """This solver for another Newton run: its first matrix gets its own LU, on this
+        one's analysis where the backend can (PARDISO, same pattern: the ordering, ~half
+        of a factorization, is not redone)."""
+        self.renew = True
+        return self
 
     def set(self, A: sp.csc_matrix) -> None:
         self.A, self.AT, self.exact = A, None, False
         self.norm = float(abs(A).sum(axis=1).max())
-        if self.lu is None:
+        if self.renew and getattr(self.lu, "refactor", None) and self.lu.refactor(A):
+            self.exact, self.renew, self.lus = True, False, self.lus + 1
+        elif self.lu is None or self.renew:
+            self.renew = False
             self._factor(diagonal=True)
 
     def _factor(self, diagonal: bool) -> None:

@@ -1,6 +1,7 @@
 """The root locus: the lowest eigenvalues kappa of the sliding pencil followed along friction.
 
-A reduced model locates the thresholds; :mod:`.fold` then finds them on the full pencil.
+A reduced model locates the thresholds, enlarged at each one until its coalescence stops
+moving (:func:`sharpen`); :mod:`.fold` then confirms them on the full pencil.
 The reduced basis holds the constrained free-vibration modes (the exact friction-0 modes, so
 the friction-0 frequencies are exact) and the static responses of the kept DOFs to
 tangential contact loads and to the normal reaction rows (the right and left null vectors of
@@ -19,11 +20,13 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as la
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from threadpoolctl import threadpool_limits
 
 from ..errors import SolverError
 from ..solvers.backends import factorize
+from . import fold
 from .pencil import SlidingPencil
 
 FULL_MAX = 80  # kept DOFs up to which the full pencil is followed densely (QZ per step)
@@ -39,6 +42,11 @@ SECONDS_PER_D3 = 4.5e-9  # one dense eigenproblem of size d, measured on 2 cores
 COMPLEX_TOL = 1e-9  # |Im kappa| <= COMPLEX_TOL |kappa|: real
 INFINITE = 1e-12  # |beta| <= INFINITE |alpha| in the QZ output: an infinite kappa
 BISECT = 20  # bisections of a flutter bracket on the reduced model
+MODES_TOL = 1e-10  # ARPACK's relative tolerance on the free vibrations: 64 solves for 20
+# modes instead of 76 at machine precision, the frequencies equal to 5e-15 (second order)
+SHARPEN_ROUNDS = 8  # at most this many enlargements of the reduced model at a coalescence
+SHARPEN_TOL = 1e-9  # ... until its coalescence moves by less than this (relative; Newton's
+# step tolerance: the full pencil's Newton then stops after one step)
 
 
 @dataclass
@@ -53,11 +61,16 @@ class Reduced:
     omega2: np.ndarray  # constrained free-vibration eigenvalues, ascending (exact)
     modes0: np.ndarray  # their modes (kept DOFs), columns
 
+    def blas(self):
+        """The BLAS threads for this model's dense eigenproblems: one below size 400 (two on a
+        busy 2-core machine made a 335 x 335 eig 5-30x slower, measured). Entered once around
+        a loop: entering costs ~2 ms, more than one eigenproblem of size 80."""
+        return threadpool_limits(1 if len(self.A0) < 400 else None, user_api="blas")
+
     def eigenvalues(self, f: float, vectors: bool = False):
         """Finite kappa at friction f (and left, right vectors if asked), by modulus."""
         a, b = self.A0 - f * self.A1, self.B0 - f * self.B1
-        with threadpool_limits(1 if len(a) < 400 else None, user_api="blas"):
-            out = la.eig(a, b, homogeneous_eigvals=True, left=vectors, right=vectors)
+        out = la.eig(a, b, homogeneous_eigvals=True, left=vectors, right=vectors)
         ab = out[0] if vectors else out
         alpha, beta = ab[0], ab[1]
         finite = np.abs(beta) > INFINITE * np.abs(alpha)
@@ -72,8 +85,15 @@ class Reduced:
         return y if self.V is None else self.V @ y
 
 
-def _factor(pencil: SlidingPencil, backend: str, order):
+def factor_of(pencil: SlidingPencil, backend: str, order):
+    """A factorization of K_rr."""
     return factorize(pencil.Krr.tocsc(), symmetric=True, backend=backend, order=order)
+
+
+def _blocks(pencil: SlidingPencil) -> list:
+    """The sparse blocks of the pencil, L = (A0 - f A1) - kappa (B0 - f B1)."""
+    return [pencil.Krr, (pencil.G @ pencil.Knr).tocsr(), pencil.Mrr,
+            (pencil.G @ pencil.Mnr).tocsr()]
 
 
 def reduced_size(n: int, p: int, modes: int) -> int:
@@ -83,31 +103,41 @@ def reduced_size(n: int, p: int, modes: int) -> int:
         return n
     k = min(modes + EXTRA_MODES, n - 2)
     corrected = min(k, modes + CORRECTED_EXTRA)
-    return min(n, k + (3 * p if 3 * p <= 4 * corrected else 4 * corrected))
+    return min(n, k + min(3 * p, 4 * corrected))
 
 
 def reduce(pencil: SlidingPencil, modes: int, *, backend: str = "scipy", order=None,
-           basis: str = "auto") -> Reduced:
+           basis: str = "auto", factor=None) -> Reduced:
     """The reduced model of a pencil, with its ``modes`` (at least) lowest free vibrations.
 
     The basis holds the ``modes`` + ``EXTRA_MODES`` lowest free-vibration modes Phi and:
     basis "contact": the static responses to every contact load (3 p columns: divergence
     exact in the model); "modal": the first-order corrections K^-1 G C Phi, K^-1 C^T G^T Phi
     (C = K_nr, M_nr) of the ``modes`` + ``CORRECTED_EXTRA`` lowest (4 columns a mode,
-    independent of p); "auto": "contact" while 3 p is at most the modal columns."""
+    independent of p); "auto": "contact" while 3 p is at most the modal columns. ``factor``:
+    a factorization of K_rr to use (e.g. the static stage's), else one is made.
+
+    Dense products run on one BLAS thread: after PARDISO's threads, two threads on a busy
+    2-core machine made them up to 30x slower (ARPACK's own work among them)."""
     n = pencil.size
-    blocks = [pencil.Krr, pencil.G @ pencil.Knr, pencil.Mrr, pencil.G @ pencil.Mnr]
+    blocks = _blocks(pencil)
     if n <= FULL_MAX:
         A0, A1, B0, B1 = (b.toarray() for b in blocks)
         w, vecs = la.eigh(A0, B0)
         return Reduced(None, A0, A1, B0, B1, w, vecs)
-    factor = _factor(pencil, backend, order)
+    factor = factor or factor_of(pencil, backend, order)
+    with threadpool_limits(1, user_api="blas"):
+        return _reduce(pencil, modes, factor, basis, blocks)
+
+
+def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str, blocks) -> Reduced:
+    n = pencil.size
     k = min(modes + EXTRA_MODES, n - 2)
     op = spla.LinearOperator((n, n), matvec=factor.solve, dtype=np.float64)
     v0 = np.random.default_rng(20030328).standard_normal(n)
     try:
         w, vecs = spla.eigsh(pencil.Krr, k=k, M=pencil.Mrr, sigma=0.0, which="LM",
-                             OPinv=op, v0=v0)
+                             OPinv=op, v0=v0, tol=MODES_TOL)
     except spla.ArpackNoConvergence:
         raise SolverError("ARPACK did not converge on the free vibrations (K, M); try fewer "
                           "modes or a coarser mesh") from None
@@ -154,10 +184,11 @@ def follow(red: Reduced, modes: int, grid: np.ndarray) -> Branches:
     """Follow the ``modes`` lowest branches along ``grid`` (starting at 0, monotone)."""
     kappa = np.empty((len(grid), modes), dtype=complex)
     kappa[0] = red.omega2[:modes]
-    for j in range(1, len(grid)):
-        ev = red.eigenvalues(grid[j])
-        guess = kappa[j - 1] if j == 1 else 2 * kappa[j - 1] - kappa[j - 2]
-        kappa[j] = _match(guess, ev, kappa[j - 1])
+    with red.blas():
+        for j in range(1, len(grid)):
+            ev = red.eigenvalues(grid[j])
+            guess = kappa[j - 1] if j == 1 else 2 * kappa[j - 1] - kappa[j - 2]
+            kappa[j] = _match(guess, ev, kappa[j - 1])
     return Branches(np.asarray(grid, float), kappa)
 
 
@@ -216,14 +247,15 @@ def locate_flutter(red: Reduced, branches: Branches) -> Guess | None:
         cplx = near[is_complex(near)]
         return near, (cplx[0] if len(cplx) else None)
 
-    for _ in range(BISECT):
-        fm = 0.5 * (fa + fb)
-        near, c = pair(fm)
-        if c is None:
-            fa = fm
-        else:
-            fb, centre = fm, c
-    near, _ = pair(fa)
+    with red.blas():
+        for _ in range(BISECT):
+            fm = 0.5 * (fa + fb)
+            near, c = pair(fm)
+            if c is None:
+                fa = fm
+            else:
+                fb, centre = fm, c
+        near, _ = pair(fa)
     real = np.sort(near[~is_complex(near)].real)
     real = real[np.argsort(np.abs(real - centre.real))][:2]
     gap2 = ((real[1] - real[0]) / 2) ** 2 if len(real) == 2 else 0.0
@@ -235,3 +267,82 @@ def locate_flutter(red: Reduced, branches: Branches) -> Guess | None:
     a = (red.A0 - f0 * red.A1) - k0 * (red.B0 - f0 * red.B1)
     U, _, Vt = la.svd(a)
     return Guess(float(f0), float(k0), red.lift(Vt[-1]), red.lift(U[:, -1]), branch)
+
+
+def sharpen(red: Reduced, pencil: SlidingPencil, factor, guess: Guess) -> Guess:
+    """The coalescence of the reduced model found exactly (:func:`fold.find_fold` on the
+    small pencil), then the model enlarged by K_rr^-1 of the full pencil's residuals L v,
+    L^T w of its null vectors and of B v, B^T w (its Jordan direction), and found again,
+    round after round (one solve of 4 columns each), until it moves by less than
+    SHARPEN_TOL: a guess whose first Newton correction on the full pencil is already below
+    Newton's tolerance (one step). ``factor``: a factorization of K_rr. At most
+    4 SHARPEN_ROUNDS columns are added. A model on the full space (small problems) is exact:
+    its guess is returned as it is."""
+    if red.V is None:
+        return guess
+    with threadpool_limits(1, user_api="blas"):
+        return _sharpen(red, pencil, factor, guess)
+
+
+def _sharpen(red: Reduced, pencil: SlidingPencil, factor, guess: Guess) -> Guess:
+    blocks = _blocks(pencil)
+    V, m = red.V, red.V.shape[1]
+    T = np.empty((len(V), 4 * SHARPEN_ROUNDS))  # the added columns, orthonormal to V's
+    t = 0  # columns of T in use
+    mats = [red.A0, red.A1, red.B0, red.B1]
+    f, kappa = guess.friction, guess.kappa
+    y, z = V.T @ guess.right, V.T @ guess.left
+
+    def lift(Y):  # reduced coordinates -> kept DOFs
+        return V @ Y[:m] + T[:, :t] @ Y[m:]
+
+    for rnd in range(SHARPEN_ROUNDS + 1):
+        d = len(mats[0])
+        small = SlidingPencil(system=None, state=None, kept=np.arange(d), slip=np.arange(d),
+                              Krr=sp.csr_matrix(mats[0]), Mrr=sp.csr_matrix(mats[2]),
+                              Knr=sp.csr_matrix(mats[1]), Mnr=sp.csr_matrix(mats[3]),
+                              G=sp.identity(d, format="csr"))
+        try:
+            found = fold.find_fold(small, f, kappa, y, z)
+        except SolverError:  # the full pencil's Newton starts from the last good point
+            break
+        still = (abs(found.friction - f) <= SHARPEN_TOL * abs(found.friction)
+                 and abs(found.kappa - kappa) <= SHARPEN_TOL * abs(found.kappa))
+        f, kappa, y, z = found.friction, found.kappa, found.right, found.left
+        if (rnd and still) or rnd == SHARPEN_ROUNDS:
+            break
+        v, w = lift(np.column_stack([y, z])).T
+        Bv = blocks[2] @ v - f * (blocks[3] @ v)
+        BTw = blocks[2].T @ w - f * (blocks[3].T @ w)
+        Lv = blocks[0] @ v - f * (blocks[1] @ v) - kappa * Bv
+        LTw = blocks[0].T @ w - f * (blocks[1].T @ w) - kappa * BTw
+        new = _outside(V, T[:, :t], factor.solve(np.column_stack([Lv, LTw, Bv, BTw])))
+        k = new.shape[1]
+        if k == 0:
+            break
+        # W' = [W, N] (W = [V, T]): W'^T b W' from W^T b W, one pass over V for all blocks
+        P = np.column_stack([b @ new for b in blocks] + [b.T @ new for b in blocks])
+        WP = np.concatenate([V.T @ P, T[:, :t].T @ P])
+        NP = new.T @ P
+        mats = [np.block([[mat, WP[:, k * i:k * i + k]],
+                          [WP[:, k * (4 + i):k * (5 + i)].T, NP[:, k * i:k * i + k]]])
+                for i, mat in enumerate(mats)]
+        T[:, t:t + k] = new
+        t += k
+        y, z = np.concatenate([y, np.zeros(k)]), np.concatenate([z, np.zeros(k)])
+    r, lft = lift(np.column_stack([y, z])).T
+    return Guess(float(f), float(kappa), r, lft, guess.branch)
+
+
+def _outside(V: np.ndarray, T: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of the part of X's span outside that of the orthonormal columns
+    of V and T: X projected out, once more if that cancelled more than 99 % of a column
+    ("twice is enough"); columns left with less than RANK_TOL of their norm dropped."""
+    before = np.linalg.norm(X, axis=0)
+    X = X - V @ (V.T @ X) - T @ (T.T @ X)
+    after = np.linalg.norm(X, axis=0)
+    if np.any(after < 0.01 * before):
+        X = X - V @ (V.T @ X) - T @ (T.T @ X)
+        after = np.linalg.norm(X, axis=0)
+    keep = after > RANK_TOL * np.maximum(before, 1e-300)
+    return _orthonormal(X[:, keep]) if keep.any() else X[:, :0]

@@ -268,3 +268,21 @@ def test_flutter_threshold_converges_with_the_mesh():
     assert 0 < d2 < d1 / 3
     limit = values[2] + d2 / (d1 / d2 - 1)  # Richardson with the observed ratio
     assert limit == pytest.approx(0.2550, abs=5e-4)
+
+
+def test_sharpened_guess_needs_one_newton_step(square):
+    """The reduced model, enlarged at its coalescence until it stops moving, lands within
+    Newton's tolerance of the full pencil's onset: Newton confirms it in one step."""
+    case, result = square
+    assert result.newton_steps == {"positive": 1, "negative": 1}
+    prep = prepare(case)
+    K = prep.system.stiffness(*lame(1.0, 0.3))
+    M = prep.system.restrict(assemble_mass(prep.mesh))
+    pencil = sliding_pencil(prep.system, K, M, ContactState.all_slipping(prep.system.n_contact))
+    red = locus.reduce(pencil, 6)
+    guess = locus.locate_flutter(red, locus.follow(red, 6, np.linspace(0, 2.0, 201)))
+    sharp = locus.sharpen(red, pencil, locus.factor_of(pencil, "scipy", None), guess)
+    assert abs(guess.friction - result.flutter["positive"]) > 1e-7  # the model alone: off
+    assert sharp.friction == pytest.approx(result.flutter["positive"], rel=1e-9)
+    found = fold.find_fold(pencil, sharp.friction, sharp.kappa, sharp.right, sharp.left)
+    assert found.steps == 1 and found.friction == pytest.approx(sharp.friction, rel=1e-9)
