@@ -23,7 +23,6 @@ from .fem.contact import ContactSystem, check_held, contact_layout, contact_syst
 from .fem.contact3d import contact_layout3d, contact_system3d, slip_directions
 from .fem.elements import get_element
 from .fem.mesh import Mesh
-from .fem.pattern import upper_pattern
 from .guards import check_dofs, polygon_footprint
 from .meshing.geometry import parallelogram, polygon, rectangle, validate
 from .meshing.gmshfile import check_file, file_mesh
@@ -287,7 +286,7 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
 
     def start(pattern) -> None:  # the analysis runs while the values are assembled
         # K's pattern: the free block's upper triangle (the n/t rotation moves no entry)
-        ptr, col, _ = upper_pattern(pattern.indptr, pattern.indices, layout.position)
+        ptr, col = pattern.upper(layout.position)
         s = case.solve
         plan.append(eigen.plan_dense(ptr, col, layout.contact_dofs, method=s["method"],
                                      shift=s["shift"], backend=s["backend"], dim=mesh.dim))

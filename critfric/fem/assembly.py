@@ -29,11 +29,7 @@ def _jacobians(mesh: Mesh, dref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """J[c, q, i, j] = d x_i / d xi_j (dim x dim) and det J at the points of the reference
     gradients ``dref`` (n_local, n_pts, dim); :class:`CaseError` if any det J is non-positive."""
     element, d = mesh.fe, mesh.dim
-    cells = np.asarray(mesh.cells)
-    if cells.ndim != 2 or cells.shape[1] != element.n_local:
-        raise CaseError(
-            f"cells have shape {cells.shape}; element {element.name} needs {element.n_local} nodes"
-        )
+    cells = _checked_cells(mesh)
     X = np.asarray(mesh.points, dtype=float)[cells]  # (n_cells, n_local, dim)
     J = np.empty((len(cells), dref.shape[1], d, d))
     for i in range(d):  # dim x dim plain matrix products, not a batch of tiny ones
@@ -57,6 +53,16 @@ def _jacobians(mesh: Mesh, dref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             f"{int(np.flatnonzero(bad)[0])}"
         )
     return J, det
+
+
+def _checked_cells(mesh: Mesh) -> np.ndarray:
+    """The mesh's cells, (n_cells, n_local) as its element needs them (else CaseError)."""
+    element, cells = mesh.fe, np.asarray(mesh.cells)
+    if cells.ndim != 2 or cells.shape[1] != element.n_local:
+        raise CaseError(
+            f"cells have shape {cells.shape}; element {element.name} needs {element.n_local} nodes"
+        )
+    return cells
 
 
 def _inverse(J: np.ndarray, det: np.ndarray) -> np.ndarray:
@@ -94,17 +100,18 @@ def cell_geometry(mesh: Mesh, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
 def assemble_elasticity(mesh: Mesh, *, on_pattern=None) -> tuple[sp.csr_matrix, sp.csr_matrix]:
     """CSR matrices ``(K_lam, K_G)`` over all dim * n_nodes DOFs with ``K = lam K_lam + G K_G``,
     assembled into the mesh's precomputed pattern (:class:`.pattern.BlockPattern`).
-    ``on_pattern(pattern)`` is called with that pattern (the cells checked) before the values
-    are summed: work that needs only the sparsity can start there."""
+    ``on_pattern(pattern)`` is called with that pattern, made from the cells alone, before
+    any geometry (whose check of the cells may still refuse the mesh): work that needs only
+    the sparsity starts there, while the values are computed."""
     element, d = mesh.fe, mesh.dim
+    pattern = BlockPattern(_checked_cells(mesh), mesh.n_nodes, d)
+    if on_pattern is not None:
+        on_pattern(pattern)
     if element.name != "P1":  # also reject cells inverted at nodes (P1: J is constant)
         _jacobians(mesh, element.shape(element.doflocs)[1])
     xi, w = element.quadrature()
-    _, det, grads = cell_geometry(mesh, xi)  # every cell checked before its pattern is used
+    _, det, grads = cell_geometry(mesh, xi)
     wdet = det * w  # (n_cells, n_qp)
-    pattern = BlockPattern(mesh.cells, mesh.n_nodes, d)
-    if on_pattern is not None:
-        on_pattern(pattern)
     # node block (a, b) of K_lam: B_km = int d_k N_a d_m N_b, summed over the cells
     B = [[pattern.block_sums(_gradient_products(grads, wdet, k, m)) for m in range(d)]
          for k in range(d)]

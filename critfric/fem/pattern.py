@@ -12,6 +12,8 @@ one ``bincount`` per block component, in cell order.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -53,25 +55,64 @@ class BlockPattern:
         ab = np.where(u < v, in_upper, in_lower)  # (u, v) is in row u
         where[:, a, b], where[:, b, a] = ab, in_upper + in_lower - ab
         self.where, self.n_nodes, self.nnz, self.dim = where, n, int(ptr[-1]), int(dim)
+        self._ptr, self._col = ptr, col  # the node pattern
+        self._itype = np.int32 if dim * dim * self.nnz < np.iinfo(np.int32).max else np.int64
 
-        # DOF level (d = dim): block q of node row i starts at d^2 ptr[i] + d (q - ptr[i]) in
-        # DOF row d i; DOF row d i + k starts k d degree[i] entries later
-        d = self.dim
-        row = np.repeat(np.arange(n), degree)
-        start, row_length = d * (np.arange(self.nnz) + (d - 1) * ptr[row]), d * degree[row]
-        del row
-        self._at = [[start + k * row_length + m for m in range(d)] for k in range(d)]
-        del start, row_length
-        itype = np.int32 if d * d * self.nnz < np.iinfo(np.int32).max else np.int64
-        indptr = np.empty(d * n + 1, dtype=itype)
+    @cached_property
+    def _at(self) -> list:
+        """_at[k][m][q]: the DOF-level entry of component (k, m) of node block q. Block q of
+        node row i starts at d^2 ptr[i] + d (q - ptr[i]) in DOF row d i; DOF row d i + k
+        starts k d degree[i] entries later (d = dim)."""
+        return _block_entries(self._ptr, self.dim)
+
+    @cached_property
+    def indptr(self) -> np.ndarray:
+        """The DOF matrix's CSR row pointers (built on first use)."""
+        d, ptr = self.dim, self._ptr
+        degree = np.diff(ptr)
+        indptr = np.empty(d * self.n_nodes + 1, dtype=self._itype)
         for k in range(d):
             indptr[k:-1:d] = d * d * ptr[:-1] + k * d * degree
         indptr[-1] = d * d * ptr[-1]
-        indices = np.empty(d * d * self.nnz, dtype=itype)
+        return indptr
+
+    @cached_property
+    def indices(self) -> np.ndarray:
+        """The DOF matrix's CSR column indices, sorted in each row (built on first use)."""
+        d = self.dim
+        indices = np.empty(d * d * self.nnz, dtype=self._itype)
         for k in range(d):
             for m in range(d):
-                indices[self._at[k][m]] = d * col + m
-        self.indptr, self.indices = indptr, indices
+                indices[self._at[k][m]] = d * self._col + m
+        return indices
+
+    def upper(self, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``upper_pattern(self.indptr, self.indices, position)[:2]``, the upper triangle of
+        the DOF pattern restricted to the rows and columns kept by ``position``, made from the
+        node pattern's upper half alone (a quarter of the DOF pattern's entries, and the DOF
+        pattern is not built): what a factorization's analysis needs first."""
+        d, n, ptr, col = self.dim, self.n_nodes, self._ptr, self._col
+        itype = self._itype
+        node_row = np.repeat(np.arange(n, dtype=itype), np.diff(ptr))
+        up = np.flatnonzero(col >= node_row)  # node entries (i, j >= i), in CSR order
+        i, j = node_row[up], col[up].astype(itype)
+        del node_row
+        uptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(np.bincount(i, minlength=n), out=uptr[1:])
+        at = _block_entries(uptr, d)  # the DOF order of the upper node blocks' entries
+        dof_row = np.empty(d * d * len(up), dtype=itype)
+        dof_col = np.empty_like(dof_row)
+        for k in range(d):
+            for m in range(d):
+                dof_row[at[k][m]], dof_col[at[k][m]] = d * i + k, d * j + m
+        del at, i, j
+        position = np.asarray(position).astype(itype)
+        new_row, new_col = position[dof_row], position[dof_col]
+        keep = (dof_col >= dof_row) & (new_row >= 0) & (new_col >= 0)
+        m_kept = int(np.count_nonzero(position >= 0))
+        out = np.zeros(m_kept + 1, dtype=itype)
+        np.cumsum(np.bincount(new_row[keep], minlength=m_kept), out=out[1:])
+        return out, new_col[keep]
 
     def block_sums(self, values: np.ndarray) -> np.ndarray:
         """Sum of cell values (n_cells, n_local, n_local) into the node pattern (nnz,)."""
@@ -89,6 +130,16 @@ class BlockPattern:
         A = sp.csr_matrix((data, self.indices.copy(), self.indptr.copy()), shape=(n, n))
         A.has_sorted_indices = True
         return A
+
+
+def _block_entries(ptr: np.ndarray, d: int) -> list:
+    """[k][m]: the DOF-level CSR position of component (k, m) of each block of a node-block
+    pattern with row pointers ``ptr`` (blocks in CSR order, d x d each, rows interleaved)."""
+    degree = np.diff(ptr)
+    row = np.repeat(np.arange(len(degree)), degree)
+    start, row_length = d * (np.arange(ptr[-1]) + (d - 1) * ptr[row]), d * degree[row]
+    del row
+    return [[start + k * row_length + m for m in range(d)] for k in range(d)]
 
 
 def upper_pattern(indptr: np.ndarray, indices: np.ndarray, position: np.ndarray | None = None

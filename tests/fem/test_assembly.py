@@ -326,8 +326,45 @@ def test_clockwise_or_degenerate_cell_raises(name):
 
 
 def test_wrong_cell_width_raises():
+    seen = []
     with pytest.raises(CaseError, match="needs 6 nodes"):
-        assemble_elasticity(Mesh(P1_MESH.points, P1_MESH.cells, "P2"))
+        assemble_elasticity(Mesh(P1_MESH.points, P1_MESH.cells, "P2"), on_pattern=seen.append)
+    assert seen == []  # no pattern from cells of the wrong width
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("dim", [2, 3])
+def test_upper_pattern_from_the_node_pattern(name, dim):
+    """BlockPattern.upper (from the node pattern) is upper_pattern of the DOF pattern,
+    restricted and renumbered, for any DOFs dropped (whole nodes or single components)."""
+    from critfric.fem.pattern import BlockPattern, upper_pattern
+
+    mesh = MESHES[name]
+    pattern = BlockPattern(mesh.cells, mesh.n_nodes, dim)
+    n = dim * mesh.n_nodes
+    for drop in (np.zeros(n, bool), np.arange(n) % 5 == 1, np.arange(n) // dim == 2):
+        position = np.where(drop, -1, np.cumsum(~drop) - 1)
+        ptr, col = pattern.upper(position)
+        want_ptr, want_col, _ = upper_pattern(pattern.indptr, pattern.indices, position)
+        np.testing.assert_array_equal(ptr, want_ptr)
+        np.testing.assert_array_equal(col, want_col)
+        assert len(ptr) == np.count_nonzero(~drop) + 1 and len(col) > 0
+
+
+def test_pattern_handed_over_before_the_geometry():
+    """on_pattern gets the pattern from the cells alone (a solve starts its factorization's
+    analysis there), before the geometry checks the cells: a mesh refused for a clockwise
+    cell has had its pattern handed over."""
+    mesh = MESHES["P1"]
+    cells = mesh.cells.copy()
+    cells[-1] = cells[-1][CLOCKWISE["P1"]]
+    seen = []
+    with pytest.raises(CaseError, match="non-positive Jacobian"):
+        assemble_elasticity(Mesh(mesh.points, cells, "P1"), on_pattern=seen.append)
+    K_lam, _ = assemble_elasticity(mesh)
+    assert len(seen) == 1
+    np.testing.assert_array_equal(seen[0].indptr, K_lam.indptr)
+    np.testing.assert_array_equal(seen[0].indices, K_lam.indices)
 
 
 # ---------------------------------------------------------------- loads
