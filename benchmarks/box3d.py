@@ -150,6 +150,17 @@ def factor(root: Path, element: str, size: float, backend: str) -> dict:
     return dict(json.loads(stdout.strip().splitlines()[-1]), factor_peak_mb=peak)
 
 
+def append_row(path: str, fields, row: dict) -> None:
+    """Append ``row`` (its ``fields``, floats to 2 decimals) to the CSV file ``path``, with
+    the header line if the file is new."""
+    new = not Path(path).exists()
+    with open(path, "a", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
+        if new:
+            w.writeheader()
+        w.writerow({k: (f"{v:.2f}" if isinstance(v, float) else v) for k, v in row.items()})
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", default="P1:0.0149:pardiso,P1:0.0149:scipy",
@@ -181,13 +192,7 @@ def main() -> None:
               f"| {r['factor']:.1f} ({r['factor_peak_mb'] / 1e3:.2f}) | {r['ratio']:.2f} |",
               flush=True)
         if a.csv:
-            new = not Path(a.csv).exists()
-            with open(a.csv, "a", newline="") as f:
-                w = csv.DictWriter(f, fieldnames=FIELDS, extrasaction="ignore")
-                if new:
-                    w.writeheader()
-                w.writerow({k: (f"{v:.2f}" if isinstance(v, float) else v)
-                            for k, v in r.items()})
+            append_row(a.csv, FIELDS, r)
 
 
 if __name__ == "__main__":

@@ -31,7 +31,7 @@ import tempfile
 from pathlib import Path
 
 import box3d
-from box3d import _run_measured  # the same fresh-process measurement as the 3D runs
+from box3d import _run_measured, append_row  # the 3D runs' measurement and CSV rows
 
 ROOT = Path(__file__).resolve().parent.parent
 VENVS = {"pardiso": ".venv", "scipy": ".venv-nofast"}
@@ -193,13 +193,7 @@ def main() -> None:
                       f"| {r['estimate_mb']:.0f} | {r['estimate_mb'] / r['peak_mb']:.2f} |",
                       flush=True)
                 if a.csv:
-                    new = not Path(a.csv).exists()
-                    with open(a.csv, "a", newline="") as f:
-                        w = csv.DictWriter(f, fieldnames=FIELDS, extrasaction="ignore")
-                        if new:
-                            w.writeheader()
-                        w.writerow({k: (f"{v:.2f}" if isinstance(v, float) else v)
-                                    for k, v in r.items()})
+                    append_row(a.csv, FIELDS, r)
 
 
 if __name__ == "__main__":

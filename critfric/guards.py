@@ -166,7 +166,7 @@ def available_memory(backend: str | None = None) -> float:
         if soft != resource.RLIM_INFINITY:
             size = float(Path("/proc/self/statm").read_text().split()[0]) * os.sysconf(
                 "SC_PAGE_SIZE")
-            factor = ADDRESS_SPACE_FACTOR.get(estimated_backend(backend), 3.0) \
+            factor = ADDRESS_SPACE_FACTOR[estimated_backend(backend)] \
                 if backend is not None else 1.0
             avail = min(avail, max(soft - size, 0.0) / factor)
     except (ImportError, OSError, ValueError, IndexError):

@@ -88,8 +88,13 @@ def boolean(value):
     return value
 
 
+def _printable(value) -> bool:
+    """A non-empty string of printable characters (no control character reaches a terminal)."""
+    return isinstance(value, str) and bool(value) and value.isprintable()
+
+
 def string(value):
-    if not isinstance(value, str) or not value or not value.isprintable():
+    if not _printable(value):
         raise Bad("a non-empty string of printable characters (no control characters: they "
                   "would reach the terminal)")
     return value
@@ -115,7 +120,7 @@ def case_output(section):
         raise BadEntry(str(bad), "file", value) from None
     parts = value.replace("\\", "/").split("/")
     if (value.startswith(("/", "~")) or ".." in parts or ":" in parts[0]
-            or not value.lower().endswith(".h5") or not value.isprintable()):
+            or not value.lower().endswith(".h5") or not _printable(value)):
         raise BadEntry("a relative path ending in .h5, inside the working directory (no "
                        "absolute path, '..' or '~'; the command line's --output may go "
                        "anywhere)", "file", value)
@@ -135,9 +140,7 @@ def portable(raw: dict) -> dict:
 def names(value):
     if isinstance(value, str):
         value = [value]
-    if not isinstance(value, list) or not value or not all(
-        isinstance(v, str) and v and v.isprintable() for v in value
-    ):
+    if not isinstance(value, list) or not value or not all(_printable(v) for v in value):
         raise Bad("a non-empty list of edge names (strings of printable characters)")
     if len(set(value)) != len(value):
         raise Bad("a list of distinct edge names")
@@ -239,8 +242,7 @@ def face_table(value):
 
 
 def string_list(value):
-    if not isinstance(value, list) or not all(isinstance(v, str) and v and v.isprintable()
-                                              for v in value):
+    if not isinstance(value, list) or not all(_printable(v) for v in value):
         raise Bad("a list of non-empty strings of printable characters")
     return list(value)
 

@@ -49,6 +49,7 @@ SPLIT_WORKERS = 2  # pieces factored at once (threads; at most the CPUs this pro
 REFINE_STEPS = 3  # ScipySchur.extend: refinement steps on the contact rows (1-2 are used)
 PREFERENCE = ("pardiso", "scipy")  # "auto": fastest first
 
+
 def available_backends() -> tuple[str, ...]:
     """Backends that can run here, fastest first."""
     return tuple(b for b in PREFERENCE if b == "scipy" or pardiso_library() is not None)
