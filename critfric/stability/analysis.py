@@ -4,8 +4,8 @@ For each sliding direction (the state's own, f > 0, and the opposite one, f < 0)
 ``modes`` lowest free-vibration branches kappa(f) = -s(f)^2 are followed from friction 0
 (:mod:`.locus`), the first coalescence is located and sharpened on the reduced model and
 found on the full pencil by Newton's method (:mod:`.fold`). One factorization of K_rr
-serves the modes, the reduced basis and the sharpening of both directions; it is freed
-before the bordered matrices are factored. Divergence (kappa = 0) happens exactly at the
+serves the modes, the reduced basis, the sharpening and Newton's bordered solves of both
+directions (freed before a bordered matrix is factored, where those stall). Divergence (kappa = 0) happens exactly at the
 static critical coefficients, computed by the static eigen stage itself.
 """
 
@@ -30,6 +30,7 @@ from ..solvers.eigen import ContactState
 from ..solvers.from_case import check_dimension, contact_state
 from ..solvers.ordering import fill_order
 from . import fold, locus
+from .bordered import Deflated
 from .pencil import sliding_pencil
 
 DIRECTIONS = ("positive", "negative")
@@ -185,9 +186,10 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
                          f"up to |friction| = {abs(end):g}")
             continue
         guesses[direction] = (guess, locus.sharpen(red, pencil, factor, guess))
-    factor = None  # K_rr's factors freed before the bordered ones are made
+    # Newton's bordered solves on K_rr's factorization (freed if they fall back on an LU)
+    solver = None if factor is None else Deflated(factor, red.modes0)
+    factor = None
     t4 = time.perf_counter()
-    solver = None
     for direction, (guess, sharp) in guesses.items():
         found = fold.find_fold(pencil, sharp.friction, sharp.kappa, sharp.right, sharp.left,
                                backend=backend, order=order, solver=solver)

@@ -1,0 +1,227 @@
+"""Solvers for the bordered matrices of :mod:`.fold`, A = [[L, b], [c^T, 0]] (L = L(f, kappa)
+of the sliding pencil, b and c the null vectors' approximations).
+
+:class:`Deflated` needs no factorization of A: GMRES on A, started from and deflated on a
+coarse space Z (the constrained free-vibration modes, b and c; the small dense Galerkin matrix
+Z^T A Z) and right-preconditioned by K_rr^-1. L = (K_rr - kappa M_rr) - f G C differs from
+K_rr by the modes below and near kappa, which Z holds, and by terms that K_rr^-1 maps close
+to the identity, so a few solves with the factorization of K_rr that served the modes reach
+rounding (3-4 a system at 95 k and 295 k DOFs from a sharpened coalescence, measured).
+Every solve's residual is checked on A itself; :class:`NotConverged` when GMRES stalls, and
+:func:`.fold.find_fold` then takes :class:`Bordered`.
+
+:class:`Bordered` factors A (SuperLU or PARDISO) and solves the matrices of further Newton
+steps by iterative refinement on that LU, a fresh LU whenever refinement does not reach
+rounding.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as la
+import scipy.sparse as sp
+from threadpoolctl import threadpool_limits
+
+from ..solvers.backends import factorize
+
+REFINE_MAX = 12  # refinement steps on an older LU before a fresh one is taken
+REFINE_TOL = 1e-14  # a solve is done: residual below this x |A| |x| (an LU solve's own level)
+ROUGH_TOL = 1e-5  # ... for the solves behind Newton's Jacobian only: its relative error e
+# leaves e times the step (~1e-15 of a 1e-10 step from a sharpened coalescence; from a cruder
+# guess, Newton converges at that rate); sigma and the null vectors are solved to REFINE_TOL
+GMRES_MAX = 20  # GMRES iterations a solve (each: one solve with K_rr) before NotConverged
+
+
+class NotConverged(Exception):
+    """GMRES did not reach the tolerance within GMRES_MAX iterations."""
+
+
+def bordered(L: sp.spmatrix, b: np.ndarray, c: np.ndarray) -> sp.csc_matrix:
+    return sp.bmat([[L, sp.csr_matrix(b[:, None])], [sp.csr_matrix(c[None, :]), None]],
+                   format="csc")
+
+
+def _row_norm(L: sp.spmatrix, b: np.ndarray, c: np.ndarray) -> float:
+    """max row sum of |A|."""
+    rows = np.asarray(abs(L).sum(axis=1)).ravel() + np.abs(b)
+    return float(max(rows.max(), np.abs(c).sum()))
+
+
+def _small(r: np.ndarray, x: np.ndarray, norm: float, tol: float) -> bool:
+    return np.max(np.abs(r)) <= tol * norm * max(np.max(np.abs(x)), 1e-300)
+
+
+class Deflated:
+    """Bordered solves by deflated, K_rr^-1-preconditioned GMRES (module docstring)."""
+
+    def __init__(self, factor, modes: np.ndarray):
+        self.factor, self.modes = factor, modes  # modes: (n, k) kept-DOF columns
+        self.lus = 0  # factorizations taken: none
+        self.iterations = 0  # GMRES iterations (solves with K_rr) in all
+
+    def renewed(self) -> Deflated:
+        return self
+
+    def release(self) -> None:
+        """Drop the factorization of K_rr (before a bordered LU is made instead)."""
+        self.factor = None
+
+    def set(self, L: sp.spmatrix, b: np.ndarray, c: np.ndarray) -> None:
+        self.L, self.LT, self.b, self.c = sp.csr_matrix(L), None, b, c
+        self.norm = _row_norm(self.L, b, c)
+        W = np.column_stack([self.modes, b, c])
+        W = W / np.linalg.norm(W, axis=0)
+        lam, U = la.eigh(W.T @ W)
+        keep = lam > 1e-14 * lam[-1]
+        self.W = W @ (U[:, keep] / np.sqrt(lam[keep]))
+        m = self.W.shape[1]
+        coarse = np.zeros((m + 1, m + 1))
+        coarse[:m, :m] = self.W.T @ (self.L @ self.W)
+        coarse[:m, m] = self.W.T @ b
+        coarse[m, :m] = c @ self.W
+        self.coarse = la.lu_factor(coarse)
+
+    def _apply(self, x: np.ndarray, transpose: bool) -> np.ndarray:
+        """A x (A^T x): [L x + b s; c^T x] for x = [x; s]."""
+        if transpose:
+            if self.LT is None:
+                self.LT = self.L.T.tocsr()
+            L, b, c = self.LT, self.c, self.b
+        else:
+            L, b, c = self.L, self.b, self.c
+        return np.concatenate([L @ x[:-1] + b * x[-1], [c @ x[:-1]]])
+
+    def _coarse(self, u: np.ndarray, transpose: bool) -> np.ndarray:
+        """Z (Z^T A Z)^-1 Z^T u (transposed: with (Z^T A Z)^-T)."""
+        y = la.lu_solve(self.coarse, np.concatenate([self.W.T @ u[:-1], u[-1:]]),
+                        trans=1 if transpose else 0, check_finite=False)
+        return np.concatenate([self.W @ y[:-1], y[-1:]])
+
+    def _precondition(self, u: np.ndarray, transpose: bool) -> np.ndarray:
+        """q + [K_rr^-1 (u - A q); 0] with q the coarse solution of u."""
+        q = self._coarse(u, transpose)
+        r = u - self._apply(q, transpose)
+        q[:-1] += self.factor.solve(r[:-1])
+        return q
+
+    def solve(self, rhs: np.ndarray, transpose: bool = False,
+              rough: bool = False) -> np.ndarray:
+        """A^-1 rhs (A^-T rhs), rhs (n + 1,) or (n + 1, k), to REFINE_TOL (ROUGH_TOL with
+        ``rough``); NotConverged after GMRES_MAX iterations."""
+        with threadpool_limits(1, user_api="blas"):  # see locus.Reduced.blas
+            if rhs.ndim == 2:
+                return np.column_stack([self._solve(col, transpose, rough) for col in rhs.T])
+            return self._solve(rhs, transpose, rough)
+
+    def _solve(self, rhs: np.ndarray, transpose: bool, rough: bool) -> np.ndarray:
+        tol = ROUGH_TOL if rough else REFINE_TOL
+        x = self._coarse(rhs, transpose)
+        left = GMRES_MAX
+        while True:
+            r = rhs - self._apply(x, transpose)
+            if _small(r, x, self.norm, tol):
+                return x
+            if left == 0:
+                raise NotConverged
+            x, used = self._gmres(r, x, transpose, tol, left)
+            left -= used
+
+    def _gmres(self, r: np.ndarray, x: np.ndarray, transpose: bool, tol: float,
+               most: int) -> tuple[np.ndarray, int]:
+        """One cycle of right-preconditioned GMRES from x (residual r), at most ``most``
+        iterations; stops when its residual estimate is below the target."""
+        beta = np.linalg.norm(r)
+        V = np.empty((most + 1, len(r)))
+        Z = np.empty((most, len(r)))
+        H = np.zeros((most + 1, most))
+        V[0] = r / beta
+        target = tol * self.norm * max(np.max(np.abs(x)), 1e-300)
+        for j in range(most):
+            Z[j] = self._precondition(V[j], transpose)
+            w = self._apply(Z[j], transpose)
+            for _ in range(2):  # classical Gram-Schmidt, twice
+                h = V[:j + 1] @ w
+                w -= h @ V[:j + 1]
+                H[:j + 1, j] += h
+            H[j + 1, j] = np.linalg.norm(w)
+            e = np.zeros(j + 2)
+            e[0] = beta
+            y, *_ = np.linalg.lstsq(H[:j + 2, :j + 1], e, rcond=None)
+            estimate = np.linalg.norm(e - H[:j + 2, :j + 1] @ y)
+            self.iterations += 1
+            if estimate <= 0.5 * target or H[j + 1, j] == 0 or j == most - 1:
+                return x + y @ Z[:j + 1], j + 1
+            V[j + 1] = w / H[j + 1, j]
+        raise AssertionError("unreachable")
+
+
+class Bordered:
+    """Solves with the current bordered matrix A by iterative refinement on the LU of an
+    earlier (nearby) one, or on its own; a fresh LU when refinement does not converge."""
+
+    def __init__(self, backend: str, order):
+        self.backend = backend
+        self.order = None if order is None else np.concatenate([order, [len(order)]])
+        self.lu = self.A = self.AT = None
+        self.exact = False  # the LU is of A itself
+        self.renew = False  # the LU is of another problem: the next matrix is factored
+        self.lus = 0  # factorizations taken
+
+    def renewed(self) -> Bordered:
+        """This solver for another Newton run: its first matrix gets its own LU, on this
+        one's analysis where the backend can (PARDISO, same pattern: the ordering, ~half
+        of a factorization, is not redone)."""
+        self.renew = True
+        return self
+
+    def release(self) -> None:
+        pass
+
+    def set(self, L: sp.spmatrix, b: np.ndarray, c: np.ndarray) -> None:
+        A = bordered(L, b, c)
+        self.A, self.AT, self.exact = A, None, False
+        self.norm = float(abs(A).sum(axis=1).max())
+        if self.renew and getattr(self.lu, "refactor", None) and self.lu.refactor(A):
+            self.exact, self.renew, self.lus = True, False, self.lus + 1
+        elif self.lu is None or self.renew:
+            self.renew = False
+            self._factor(diagonal=True)
+
+    def _factor(self, diagonal: bool) -> None:
+        self.lu = factorize(self.A, symmetric=False, backend=self.backend, order=self.order,
+                            diagonal=diagonal)
+        self.exact, self.diagonal, self.lus = True, diagonal, self.lus + 1
+
+    def solve(self, rhs: np.ndarray, transpose: bool = False,
+              rough: bool = False) -> np.ndarray:
+        """Every solve is refined to ``REFINE_TOL`` (``rough`` or not): on an older LU, or on
+        this matrix's own LU with diagonal pivots (whose growth, if any, shows in the
+        residual). When that stalls: this matrix's own LU, with threshold pivoting if it had
+        diagonal pivots."""
+        x = self._refined(rhs, transpose)
+        while x is None:
+            if not self.exact:
+                self._factor(diagonal=True)
+            elif self.diagonal:
+                self._factor(diagonal=False)
+            else:  # its own LU with threshold pivoting: as good as it gets
+                return self.lu.solve(rhs, transpose=transpose)
+            x = self._refined(rhs, transpose)
+        return x
+
+    def _refined(self, rhs: np.ndarray, transpose: bool) -> np.ndarray | None:
+        x = self.lu.solve(rhs, transpose=transpose)
+        if transpose and self.AT is None:
+            self.AT = self.A.T.tocsr()
+        A = self.AT if transpose else self.A
+        previous = np.inf
+        for _ in range(REFINE_MAX):
+            r = rhs - A @ x
+            size = np.max(np.abs(r)) / (self.norm * max(np.max(np.abs(x)), 1e-300))
+            if size <= REFINE_TOL:
+                return x
+            if size > 0.5 * previous:  # not converging
+                return None
+            previous = size
+            x = x + self.lu.solve(r, transpose=transpose)
+        return None

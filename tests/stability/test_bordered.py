@@ -1,0 +1,97 @@
+"""Newton's bordered solves on the factorization of K_rr (stability/bordered.py): deflated
+GMRES against the LU of the bordered matrix, and the fall-back on that LU."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+from critfric.case.schema import load_case
+from critfric.fem.assembly import assemble_mass, lame
+from critfric.solve import prepare
+from critfric.solvers.eigen import ContactState
+from critfric.stability import bordered, fold, locus, sliding_pencil
+
+
+@pytest.fixture(scope="module")
+def sharpened():
+    """The unit square, P1, h = 0.05 (2.6 k kept DOFs): its positive onset, sharpened."""
+    case = load_case("unit-square", overrides={"mesh.size": 0.05})
+    prep = prepare(case)
+    K = prep.system.stiffness(*lame(1.0, 0.3))
+    M = prep.system.restrict(assemble_mass(prep.mesh))
+    pencil = sliding_pencil(prep.system, K, M, ContactState.all_slipping(prep.system.n_contact))
+    factor = locus.factor_of(pencil, "scipy", None)
+    red = locus.reduce(pencil, 6, factor=factor)
+    guess = locus.locate_flutter(red, locus.follow(red, 6, np.linspace(0, 2.0, 201)))
+    return pencil, factor, red, locus.sharpen(red, pencil, factor, guess)
+
+
+def _unit(x):
+    return x / np.linalg.norm(x)
+
+
+def test_deflated_solves_reach_the_lu_solves(sharpened):
+    pencil, factor, red, sharp = sharpened
+    n = pencil.size
+    L = pencil.L(sharp.friction, sharp.kappa)
+    b, c = _unit(sharp.left), _unit(sharp.right)
+    A = bordered.bordered(L, b, c)
+    norm = abs(A).sum(axis=1).max()
+    lu = spla.splu(A.tocsc())
+    D = bordered.Deflated(factor, red.modes0)
+    D.set(L, b, c)
+    e = np.zeros(n + 1)
+    e[n] = 1.0
+    derivative = np.concatenate([pencil.B(sharp.friction) @ sharp.right, [0.0]])
+    for rhs, rough, tol in ((e, False, bordered.REFINE_TOL), (derivative, True,
+                                                               bordered.ROUGH_TOL)):
+        for transpose in (False, True):
+            x = D.solve(rhs, transpose=transpose, rough=rough)
+            ref = lu.solve(rhs, trans="T" if transpose else "N")
+            residual = (A.T if transpose else A) @ x - rhs
+            assert np.abs(residual).max() <= tol * norm * np.abs(x).max()
+            assert np.abs(x - ref).max() <= 1e3 * tol * np.abs(ref).max()
+    assert D.lus == 0 and 0 < D.iterations <= 4 * bordered.GMRES_MAX
+
+
+def test_newton_on_deflated_solves_lands_where_the_lu_newton_does(sharpened):
+    pencil, factor, red, sharp = sharpened
+    args = (pencil, sharp.friction, sharp.kappa, sharp.right, sharp.left)
+    on_lu = fold.find_fold(*args)
+    deflated = fold.find_fold(*args, solver=bordered.Deflated(factor, red.modes0))
+    assert isinstance(on_lu.solver, bordered.Bordered) and on_lu.solver.lus >= 1
+    assert isinstance(deflated.solver, bordered.Deflated) and deflated.solver.lus == 0
+    assert deflated.steps == on_lu.steps == 1
+    assert deflated.friction == pytest.approx(on_lu.friction, rel=1e-11)
+    assert deflated.kappa == pytest.approx(on_lu.kappa, rel=1e-11)
+    assert deflated.residual <= 1e-12
+    # the other direction's run takes the same solver on
+    again = fold.find_fold(*args, solver=deflated.solver)
+    assert again.solver is deflated.solver and again.friction == deflated.friction
+
+
+def test_stalled_gmres_hands_over_to_the_lu(sharpened, monkeypatch):
+    pencil, factor, red, sharp = sharpened
+    args = (pencil, sharp.friction, sharp.kappa, sharp.right, sharp.left)
+    on_lu = fold.find_fold(*args)
+    monkeypatch.setattr(bordered, "GMRES_MAX", 0)
+    D = bordered.Deflated(factor, red.modes0)
+    found = fold.find_fold(*args, solver=D)
+    assert D.factor is None  # K_rr's factorization released before the LU is made
+    assert isinstance(found.solver, bordered.Bordered) and found.solver.lus >= 1
+    assert found.friction == pytest.approx(on_lu.friction, rel=1e-12)
+
+
+def test_from_a_raw_guess_newton_on_deflated_solves_converges(sharpened):
+    """The Jacobian's rough solves cost no accuracy: from the reduced model's raw guess
+    (~1e-4 off) Newton on the deflated solves ends where the LU's does."""
+    pencil, factor, red, sharp = sharpened
+    guess = locus.locate_flutter(red, locus.follow(red, 6, np.linspace(0, 2.0, 201)))
+    args = (pencil, guess.friction, guess.kappa, guess.right, guess.left)
+    on_lu = fold.find_fold(*args)
+    deflated = fold.find_fold(*args, solver=bordered.Deflated(factor, red.modes0))
+    assert isinstance(deflated.solver, bordered.Deflated) and deflated.steps >= 2
+    assert deflated.friction == pytest.approx(on_lu.friction, rel=1e-11)
+    assert deflated.friction == pytest.approx(sharp.friction, rel=1e-7)
