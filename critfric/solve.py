@@ -139,6 +139,7 @@ class Result:
             "complete": self.complete,
             "seconds": round(self.seconds, 4),
             "warnings": list(self.warnings),
+            "notes": list(self.notes),
             **({"dim": 3, "law": self.law, "slip_angle": self.slip_angle,
                 "r_positive": [float(x) for x in self.r_of(self.positive)],
                 "r_negative": [float(x) for x in self.r_of(self.negative)]}

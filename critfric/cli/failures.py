@@ -64,6 +64,10 @@ def reported(kept: str = "nothing was written") -> Iterator[Ending]:
     except CritfricError as exc:
         say(f"critfric: error: {exc}", level=0)
         raise typer.Exit(exc.exit_code) from None
+    except MemoryError:  # past the memory guard's estimate: a message, not a traceback
+        say(f"critfric: error: out of memory ({ending.kept}); use a coarser mesh, the fast "
+            "extra (PARDISO needs less), or a machine with more memory", level=0)
+        raise typer.Exit(1) from None
     except KeyboardInterrupt as exc:  # typer would exit 130 without a word
         term = isinstance(exc, Terminated)
         say(f"critfric: {'terminated' if term else 'interrupted'}: {ending.kept}", level=0)

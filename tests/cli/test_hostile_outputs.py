@@ -299,3 +299,18 @@ def test_the_polygon_api_states_the_limits():
         polygon(np.c_[np.cos(t), np.sin(t)])
     with pytest.raises(CaseError, match="at most 100 vertices"):
         prism_polygon(np.c_[np.cos(t[::5]), np.sin(t[::5])])
+
+
+def test_running_out_of_memory_is_a_message_not_a_traceback(capsys):
+    """Past the memory guard's estimate (another job took the memory): exit 1, one line that
+    says what to do, and what was (not) written."""
+    import typer
+
+    from critfric.cli.failures import reported
+
+    with pytest.raises(typer.Exit) as ended:
+        with reported("nothing was written"):
+            raise MemoryError
+    err = capsys.readouterr().err
+    assert ended.value.exit_code == 1 and "Traceback" not in err
+    assert "out of memory (nothing was written)" in err and "coarser mesh" in err
