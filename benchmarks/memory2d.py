@@ -39,7 +39,7 @@ DOFS = "0.1,0.25,0.5,1,2,4"  # millions
 MARGIN = 1.05  # estimates at least this x every peak: repeat runs differ by up to 1.5% on
 #               PARDISO, 5% on SciPy (its two pieces factored in threads)
 FIELDS = ("backend", "element", "size", "est_dofs", "est_contact", "n_dofs", "n_contact",
-          "method", "wall", "peak_mb", "schur")  # schur: SciPy's "whole" or "pieces"
+          "method", "wall", "peak_mb")
 
 
 def _case(element: str, size: float | None = None, backend: str = "auto"):
@@ -84,13 +84,9 @@ def solve(root: Path, element: str, size: float, backend: str) -> dict:
                "--size", str(size), "--element", element, "--backend", backend, "--json",
                "-o", str(Path(tmp) / "r.h5"), "--force", "--max-dofs", str(10**9)]
         wall, peak, stdout = _run_measured(cmd, root)
-    from critfric.solvers.eigen import SPLIT_NOTE
-
     summary = json.loads(stdout)
-    schur = "" if backend != "scipy" else (
-        "pieces" if SPLIT_NOTE in summary.get("notes", []) else "whole")
     return {"wall": wall, "peak_mb": peak, "n_dofs": summary["n_dofs"],
-            "n_contact": summary["n_contact"], "method": summary["method"], "schur": schur}
+            "n_contact": summary["n_contact"], "method": summary["method"]}
 
 
 def fit(rows: list[dict]) -> dict:
@@ -108,8 +104,7 @@ def fit(rows: list[dict]) -> dict:
     for r in rows:
         for n, p in ((float(r["est_dofs"]), float(r["est_contact"])),
                      (float(r["n_dofs"]), float(r["n_contact"]))):
-            key = (guards.model_key_2d(r["backend"], n, schur=r["schur"] or None),
-                   r["element"])
+            key = (guards.model_key_2d(r["backend"], n), r["element"])
             points.setdefault(key, []).append(
                 (1.0, n, n * np.log2(n), guards.dense_bytes(p), float(r["peak_mb"]) * 1e6))
     model: dict[str, dict] = {}
@@ -155,7 +150,7 @@ def report(path: str) -> None:
         for kind in ("est", "n"):
             e[kind] = guards.memory_estimate(
                 float(r[f"{kind}_dofs"]), float(r[f"{kind}_contact"]), element=r["element"],
-                backend=r["backend"], schur=r["schur"] or None) / 1e6
+                backend=r["backend"]) / 1e6
             ratios.append(e[kind] / peak)
         print(f"| {r['backend']} | {r['element']} | {r['n_dofs']} | {r['n_contact']} "
               f"| {peak:.0f} | {e['est']:.0f} | {e['est'] / peak:.2f} "

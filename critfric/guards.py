@@ -31,34 +31,29 @@ from .fem.elements import get_element
 from .fem.mesh import shoelace
 
 DENSE_COPIES = 6  # 2D dense stage: S, its Cholesky factor, T, eigenvectors, workspace
-SPLIT_MIN_ROWS = 400_000  # SciPy's Schur complement by substructuring from here on, where one
-# factorization of the whole would not fit in memory (:func:`scipy_whole_fits`)
-WHOLE_HEADROOM = 0.75  # ... fit: its estimate within this part of the memory available (the
-# pieces are the safe side: P2 at 4.2 M DOFs, estimated 18 of 22 GB, ran out of memory whole)
+SPLIT_MIN_ROWS = 400_000  # SciPy's Schur complement by substructuring from here on (memory)
 
 #: 2D: peak bytes of a solve with n DOFs and p contact nodes, fitted to the peak RSS of
-#: `critfric solve unit-square` (benchmarks/memory2d.py, 73 runs in benchmarks/memory2d.csv:
+#: `critfric solve unit-square` (benchmarks/memory2d.py, 60 runs in benchmarks/memory2d.csv:
 #: P1 and P2 from 0.1 to 4.2 M DOFs, Q1 and Q2 from 0.1 to 2.1 M, both backends):
 #: MODEL_2D[backend][element] = (base, per DOF, fill) gives base + per DOF n (mesh, assembly,
 #: vectors) + fill n log2 n (the factor in a nested-dissection order), plus the dense stage
-#: (:func:`dense_bytes`). SciPy's one factorization of the whole ("scipy whole":
-#: :func:`model_key_2d`) needs about twice its Schur complement by pieces ("scipy": 1.67
-#: against 0.97 GB at 0.55 M DOFs, 13.8 against 6.6 GB at 4.18 M, P1). Linear programming
-#: (memory2d.py --fit): every estimate, from the DOFs and contact nodes predicted before
-#: meshing and from the mesh made, at least 1.05 x its peak (repeat runs differ by up to 1.5%
-#: on PARDISO, 5% on SciPy), the largest ratio least. Before meshing, the estimates are
-#: 1.05-1.13 x the peaks of P1 and P2 on PARDISO, 1.05-1.22 x on SciPy, 1.05-1.24 x for Q1
-#: and Q2 (whose DOF count is estimated up to 18% low) but 1.36-1.50 x for Q2's whole
-#: factorization from 0.5 M DOFs; from the mesh made, 1.05-1.29 x (Q2 whole: 1.44-1.50).
-#: The same fit to the runs up to 2.2 M DOFs alone gave 1.06-1.23 x the four peaks at 4.18
-#: M (P1, P2, PARDISO and SciPy by pieces).
+#: (:func:`dense_bytes`). SciPy's one factorization of the whole ("scipy whole", below
+#: SPLIT_MIN_ROWS: :func:`model_key_2d`) needs more than its Schur complement by pieces above
+#: (0.97 against 1.15 GB at 0.55 and 0.38 M DOFs, P1). Linear programming (memory2d.py
+#: --fit): every estimate, from the DOFs and contact nodes predicted before meshing and from
+#: the mesh made, at least 1.05 x its peak (repeat runs differ by up to 1.5% on PARDISO, 5%
+#: on SciPy), the largest ratio least. Before meshing, the estimates are 1.05-1.13 x the
+#: peaks of P1 and P2 on PARDISO, 1.05-1.22 x on SciPy, 1.05-1.25 x for Q1 and Q2 (whose
+#: DOF count is estimated up to 18% low); from the mesh made, 1.05-1.29 x. The same fit to
+#: the runs up to 2.2 M DOFs alone gave 1.06-1.23 x the four peaks at 4.18 M (P1, P2).
 MODEL_2D = {
     "pardiso": {"P1": (132e6, 1980.0, 3.79), "P2": (183e6, 1270.0, 62.6),
                 "Q1": (193e6, 178.0, 115.0), "Q2": (204e6, 3260.0, 0.0)},
     "scipy": {"P1": (194e6, 866.0, 37.2), "P2": (142e6, 2940.0, 0.0),
               "Q1": (227e6, 1930.0, 0.0), "Q2": (524e6, 2980.0, 0.0)},
-    "scipy whole": {"P1": (90.2e6, 760.0, 132.0), "P2": (72.4e6, 0.0, 239.0),
-                    "Q1": (143e6, 575.0, 163.0), "Q2": (3.28e6, 226.0, 251.0)},
+    "scipy whole": {"P1": (102e6, 162.0, 159.0), "P2": (38.1e6, 4360.0, 0.0),
+                    "Q1": (0.0, 3890.0, 9.75), "Q2": (74.9e6, 0.0, 222.0)},
 }
 _CELL_AREA = {"triangle": math.sqrt(3) / 2, "quad": 1.0}  # cell area / size^2
 
@@ -186,15 +181,6 @@ def available_memory(backend: str | None = None) -> float:
     return avail
 
 
-def resident_memory() -> float:
-    """Bytes this process holds (resident set), 0 where /proc does not say."""
-    try:
-        return float(Path("/proc/self/statm").read_text().split()[1]) * os.sysconf(
-            "SC_PAGE_SIZE")
-    except (OSError, ValueError, IndexError):
-        return 0.0
-
-
 def estimated_backend(backend: str | None = None) -> str:
     """The sparse solver an estimate models: ``backend`` as a case names it; "auto" (or
     None) is PARDISO wherever its ``pypardiso`` wheel is installed (what
@@ -217,47 +203,20 @@ def dense_bytes(n_contact: float, *, dim: int = 2, backend: str | None = None) -
     return per * rows * rows
 
 
-def model_key_2d(backend: str, n_dofs: float, n_contact: float = 0.0,
-                 element: str = "P1", schur: str | None = None) -> str:
+def model_key_2d(backend: str, n_dofs: float) -> str:
     """The row of MODEL_2D for ``backend`` at ``n_dofs``: SciPy's Schur complement comes from
-    one factorization of the whole ("scipy whole") below 1.1 SPLIT_MIN_ROWS DOFs (a margin for
-    the held DOFs, which the solver does not count, and for an estimate before meshing above
-    the mesh's count) and above where :func:`scipy_whole_fits`, else from pieces ("scipy").
-    ``schur``: "whole" or "pieces" to say which (a measured run's)."""
-    if backend != "scipy":
-        return backend
-    if schur is None:
-        whole = n_dofs < 1.1 * SPLIT_MIN_ROWS or scipy_whole_fits(n_dofs, n_contact, element)
-        schur = "whole" if whole else "pieces"
-    return "scipy whole" if schur == "whole" else "scipy"
-
-
-def scipy_whole_fits(n_dofs: float, n_contact: float = 0.0, element: str = "P1",
-                     used: float = 0.0) -> bool:
-    """Whether the estimated peak of SciPy's 2D Schur complement from one factorization of the
-    whole fits in the memory available (``used``: bytes of it the calling process holds
-    already). From SPLIT_MIN_ROWS rows on, SciPy takes it so where it fits: faster (1.29 M
-    DOFs: 17.5 s, and 2.6 s to extend the modes) than from pieces (26.5 s and 5.3 s), in more
-    memory (4.36 against 2.48 GB)."""
-    n = max(float(n_dofs), 2.0)
-    if not (math.isfinite(n) and math.isfinite(n_contact)):
-        return False
-    need = _model_2d("scipy whole", element, n) + dense_bytes(n_contact, backend="scipy")
-    return need - used <= WHOLE_HEADROOM * available_memory("scipy")
-
-
-def _model_2d(key: str, element: str, n: float) -> float:
-    base, per_dof, fill = MODEL_2D[key][element]
-    return base + per_dof * n + fill * n * math.log2(n)
+    one factorization of the whole below SPLIT_MIN_ROWS free DOFs ("scipy whole", which needs
+    more), taken up to 1.1 SPLIT_MIN_ROWS DOFs: a margin for the held DOFs, which the solver
+    does not count, and for an estimate before meshing above the mesh's count."""
+    whole = backend == "scipy" and n_dofs < 1.1 * SPLIT_MIN_ROWS
+    return "scipy whole" if whole else backend
 
 
 def memory_estimate(n_dofs: float, n_contact: float = 0.0, *, dim: int = 2,
-                    element: str = "P1", backend: str | None = None,
-                    schur: str | None = None) -> float:
+                    element: str = "P1", backend: str | None = None) -> float:
     """Peak bytes of a solve with ``n_dofs`` degrees of freedom and ``n_contact`` contact
     nodes, with ``element`` on ``backend`` (:func:`estimated_backend`): the fitted model of
-    MODEL_2D (2D; ``schur`` as :func:`model_key_2d` takes it) or FILL_3D (``dim`` 3), plus the
-    dense stage (:func:`dense_bytes`)."""
+    MODEL_2D (2D) or FILL_3D (``dim`` 3), plus the dense stage (:func:`dense_bytes`)."""
     n = max(float(n_dofs), 2.0)
     if not (math.isfinite(n) and math.isfinite(n_contact)):
         return math.inf
@@ -267,7 +226,8 @@ def memory_estimate(n_dofs: float, n_contact: float = 0.0, *, dim: int = 2,
         with np.errstate(over="ignore"):
             fill = FILL_3D[b][element] * np.float64(n) ** FILL_EXPONENT_3D
         return float(BASE_BYTES_3D + PER_DOF_3D[element] * n + fill + dense)
-    return _model_2d(model_key_2d(b, n, n_contact, element, schur), element, n) + dense
+    base, per_dof, fill = MODEL_2D[model_key_2d(b, n)][element]
+    return base + per_dof * n + fill * n * math.log2(n) + dense
 
 
 def dofs_that_fit(memory: float, *, contact=None, **model) -> float:

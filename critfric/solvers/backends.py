@@ -12,11 +12,10 @@ Backends (``BACKENDS``; ``"auto"`` takes the first available of ``PREFERENCE``):
   default COLAMD (~16x slower and ~8x larger on these matrices): nested dissection of the mesh
   when the caller gives it (:mod:`critfric.solvers.ordering`, ~3x faster than the
   alternative), else minimum degree on A^T + A. Its Schur complement comes from the same
-  factorization, with the Schur rows ordered last; from SPLIT_MIN_ROWS rows where that would
-  not fit in memory (or from SPLIT_MIN_SCHUR Schur rows) on, from the pieces of a partition
-  factored two at a time in threads (:class:`SplitSchur`), in about half the memory (2.5
-  against 4.4 GB at 1.3 M rows, measured: 1.6x the time) and, with many Schur rows (3D), in
-  less time.
+  factorization, with the Schur rows ordered last; from SPLIT_MIN_ROWS rows (or
+  SPLIT_MIN_SCHUR Schur rows) on, from the pieces of a partition factored two at a time in
+  threads (:class:`SplitSchur`), in about half the memory (2.1 against 4.2 GB at 1.3 M rows,
+  measured) and, with many Schur rows (3D), in less time.
 * ``pardiso``: Intel MKL PARDISO, from the ``pypardiso`` wheel (``pip install
   critfric[fast]``, x86-64), called directly through ctypes (:mod:`.pardiso`): METIS
   ordering, Cholesky-class factorization (mtype 2) and the Schur complement computed during
@@ -279,12 +278,11 @@ class _NoSplit(Exception):
 
 
 def schur(A: sp.spmatrix, index: np.ndarray, *, backend: str = "scipy", order=None,
-          pieces=None, plan: PardisoPlan | None = None, whole: bool = False):
+          pieces=None, plan: PardisoPlan | None = None):
     """Dense Schur complement of a symmetric positive definite A onto ``index`` (object with
     ``S``, ``extend(x_c)`` and ``backend``); ``order`` as for :func:`factorize`. ``pieces``: a
     partition of A's rows as :class:`SplitSchur` takes it, or a function that makes one; SciPy
-    substructures on it from SPLIT_MIN_ROWS rows (unless ``whole``: the caller found that one
-    factorization of the whole fits in memory) or SPLIT_MIN_SCHUR Schur rows on,
+    substructures on it from SPLIT_MIN_ROWS rows or SPLIT_MIN_SCHUR Schur rows on,
     SPLIT_WORKERS pieces at a time.
     ``plan``: a :class:`PardisoPlan` of A's pattern, used if it matches."""
     index = np.asarray(index, dtype=np.int64)
@@ -292,8 +290,7 @@ def schur(A: sp.spmatrix, index: np.ndarray, *, backend: str = "scipy", order=No
     if backend == "pardiso" and len(index) < A.shape[0]:
         factor = plan.schur(A, index) if plan is not None else None
         return factor or PardisoFactor(A, symmetric=True, schur_index=index)
-    if pieces is not None and ((A.shape[0] >= SPLIT_MIN_ROWS and not whole)
-                               or len(index) >= SPLIT_MIN_SCHUR):
+    if pieces is not None and (A.shape[0] >= SPLIT_MIN_ROWS or len(index) >= SPLIT_MIN_SCHUR):
         try:
             return SplitSchur(A, index, pieces() if callable(pieces) else pieces, order=order,
                               workers=min(SPLIT_WORKERS, usable_cpus()))

