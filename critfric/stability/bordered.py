@@ -131,17 +131,17 @@ class Deflated:
         """One cycle of right-preconditioned GMRES from x (residual r), at most ``most``
         iterations; stops when its residual estimate is below the target."""
         beta = np.linalg.norm(r)
-        V = np.empty((most + 1, len(r)))
-        Z = np.empty((most, len(r)))
+        V, Z = [r / beta], []  # the Krylov basis and its preconditioned images, as used
         H = np.zeros((most + 1, most))
-        V[0] = r / beta
         target = tol * self.norm * max(np.max(np.abs(x)), 1e-300)
-        for j in range(most):
-            Z[j] = self._precondition(V[j], transpose)
+        while True:
+            j = len(Z)
+            Z.append(self._precondition(V[j], transpose))
             w = self._apply(Z[j], transpose)
             for _ in range(2):  # classical Gram-Schmidt, twice
-                h = V[:j + 1] @ w
-                w -= h @ V[:j + 1]
+                h = np.array([v @ w for v in V])
+                for hi, v in zip(h, V):
+                    w -= hi * v
                 H[:j + 1, j] += h
             H[j + 1, j] = np.linalg.norm(w)
             e = np.zeros(j + 2)
@@ -149,10 +149,9 @@ class Deflated:
             y, *_ = np.linalg.lstsq(H[:j + 2, :j + 1], e, rcond=None)
             estimate = np.linalg.norm(e - H[:j + 2, :j + 1] @ y)
             self.iterations += 1
-            if estimate <= 0.5 * target or H[j + 1, j] == 0 or j == most - 1:
-                return x + y @ Z[:j + 1], j + 1
-            V[j + 1] = w / H[j + 1, j]
-        raise AssertionError("unreachable")
+            if estimate <= 0.5 * target or H[j + 1, j] == 0 or j + 1 == most:
+                return x + sum(yi * z for yi, z in zip(y, Z)), j + 1
+            V.append(w / H[j + 1, j])
 
 
 class Bordered:
