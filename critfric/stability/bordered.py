@@ -29,6 +29,8 @@ REFINE_TOL = 1e-14  # a solve is done: residual below this x |A| |x| (an LU solv
 ROUGH_TOL = 1e-5  # ... for the solves behind Newton's Jacobian only: its relative error e
 # leaves e times the step (~1e-15 of a 1e-10 step from a sharpened coalescence; from a cruder
 # guess, Newton converges at that rate); sigma and the null vectors are solved to REFINE_TOL
+RANK_TOL = 1e-7  # bases: relative singular values below this are dropped (a Gram matrix
+# resolves them to ~1e-8)
 GMRES_MAX = 20  # GMRES iterations a solve (each: one solve with K_rr) before NotConverged
 
 
@@ -47,6 +49,19 @@ def _row_norm(L: sp.spmatrix, b: np.ndarray, c: np.ndarray) -> float:
     return float(max(rows.max(), np.abs(c).sum()))
 
 
+def orthonormal(W: np.ndarray) -> np.ndarray:
+    """A well-conditioned basis of the span of the columns of W, directions below
+    ``RANK_TOL`` of the largest dropped: the columns scaled to unit norm, then V G^-1/2 with
+    the small Gram matrix G = V^T V (matrix products only: 1.1 s at 295 k x 150 against 4.1 s
+    for a blocked QR, 3.7 s pivoted). Orthonormal to ~1e-16 cond(W)^2 (cond(V) <= 1.02): the
+    reduced pencils are Galerkin projections and need no more."""
+    norms = np.linalg.norm(W, axis=0)
+    V = W[:, norms > 0] / norms[norms > 0]
+    lam, U = la.eigh(V.T @ V)
+    keep = lam > RANK_TOL ** 2 * lam[-1]
+    return V @ (U[:, keep] / np.sqrt(lam[keep]))
+
+
 def _small(r: np.ndarray, x: np.ndarray, norm: float, tol: float) -> bool:
     return np.max(np.abs(r)) <= tol * norm * max(np.max(np.abs(x)), 1e-300)
 
@@ -55,7 +70,8 @@ class Deflated:
     """Bordered solves by deflated, K_rr^-1-preconditioned GMRES (module docstring)."""
 
     def __init__(self, factor, modes: np.ndarray):
-        self.factor, self.modes = factor, modes  # modes: (n, k) kept-DOF columns
+        self.factor = factor
+        self.Q = orthonormal(modes)  # modes: (n, k) kept-DOF columns
         self.lus = 0  # factorizations taken: none
         self.iterations = 0  # GMRES iterations (solves with K_rr) in all
 
@@ -69,11 +85,10 @@ class Deflated:
     def set(self, L: sp.spmatrix, b: np.ndarray, c: np.ndarray) -> None:
         self.L, self.LT, self.b, self.c = sp.csr_matrix(L), None, b, c
         self.norm = _row_norm(self.L, b, c)
-        W = np.column_stack([self.modes, b, c])
-        W = W / np.linalg.norm(W, axis=0)
-        lam, U = la.eigh(W.T @ W)
-        keep = lam > 1e-14 * lam[-1]
-        self.W = W @ (U[:, keep] / np.sqrt(lam[keep]))
+        bc = np.column_stack([b, c])
+        for _ in range(2):  # b and c outside the modes' span ("twice is enough")
+            bc -= self.Q @ (self.Q.T @ bc)
+        self.W = np.column_stack([self.Q, orthonormal(bc)])
         m = self.W.shape[1]
         coarse = np.zeros((m + 1, m + 1))
         coarse[:m, :m] = self.W.T @ (self.L @ self.W)

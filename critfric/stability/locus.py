@@ -27,6 +27,7 @@ from threadpoolctl import threadpool_limits
 from ..errors import SolverError
 from ..solvers.backends import factorize
 from . import fold
+from .bordered import RANK_TOL, orthonormal
 from .pencil import SlidingPencil
 
 FULL_MAX = 80  # kept DOFs up to which the full pencil is followed densely (QZ per step)
@@ -36,8 +37,6 @@ CORRECTED_EXTRA = 5  # "modal" basis: first-order corrections of the modes + 5 l
 #: largest 2 x steps x d^3 (d: reduced size) of the dense eigenproblems along the grid
 #: (a bound of ~40 minutes; a larger request is refused up front rather than left running)
 WORK_MAX = 5e11
-RANK_TOL = 1e-7  # reduced basis: relative singular values below this are dropped (a Gram
-# matrix resolves them to ~1e-8)
 SECONDS_PER_D3 = 4.5e-9  # one dense eigenproblem of size d, measured on 2 cores (d 300-1200)
 COMPLEX_TOL = 1e-9  # |Im kappa| <= COMPLEX_TOL |kappa|: real
 INFINITE = 1e-12  # |beta| <= INFINITE |alpha| in the QZ output: an infinite kappa
@@ -155,22 +154,9 @@ def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str, blocks) -> Re
         low = vecs[:, :corrected]
         loads = [G @ (pencil.Knr @ low), G @ (pencil.Mnr @ low),
                  pencil.Knr.T @ (GT @ low), pencil.Mnr.T @ (GT @ low)]
-    V = _orthonormal(np.column_stack([vecs, factor.solve(np.column_stack(loads))]))
+    V = orthonormal(np.column_stack([vecs, factor.solve(np.column_stack(loads))]))
     A0, A1, B0, B1 = (V.T @ (b @ V) for b in blocks)
     return Reduced(V, A0, A1, B0, B1, w, vecs)
-
-
-def _orthonormal(W: np.ndarray) -> np.ndarray:
-    """A well-conditioned basis of the span of the columns of W, directions below
-    ``RANK_TOL`` of the largest dropped: the columns scaled to unit norm, then V G^-1/2 with
-    the small Gram matrix G = V^T V (matrix products only: 1.1 s at 295 k x 150 against 4.1 s
-    for a blocked QR, 3.7 s pivoted). Orthonormal to ~1e-16 cond(W)^2 (cond(V) <= 1.02): the
-    reduced pencils are Galerkin projections and need no more."""
-    norms = np.linalg.norm(W, axis=0)
-    V = W[:, norms > 0] / norms[norms > 0]
-    lam, U = la.eigh(V.T @ V)
-    keep = lam > RANK_TOL ** 2 * lam[-1]
-    return V @ (U[:, keep] / np.sqrt(lam[keep]))
 
 
 @dataclass
@@ -346,4 +332,4 @@ def _outside(V: np.ndarray, T: np.ndarray, X: np.ndarray) -> np.ndarray:
         X = X - V @ (V.T @ X) - T @ (T.T @ X)
         after = np.linalg.norm(X, axis=0)
     keep = after > RANK_TOL * np.maximum(before, 1e-300)
-    return _orthonormal(X[:, keep]) if keep.any() else X[:, :0]
+    return orthonormal(X[:, keep]) if keep.any() else X[:, :0]
