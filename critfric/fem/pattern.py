@@ -23,7 +23,8 @@ class BlockPattern:
     ``dim`` x ``dim`` blocks (node i has DOFs dim i + k).
 
     where : (n_cells, n_local, n_local) position, in the node pattern, of the block of
-            cell c's local node pair (a, b).
+            cell c's local node pair (a, b) (made on first use: the node pattern, and with it
+            :meth:`upper`, is ready before).
     """
 
     def __init__(self, cells: np.ndarray, n_nodes: int, dim: int = 2):
@@ -47,16 +48,24 @@ class BlockPattern:
         lower[by_hi] = ptr[hi[by_hi]] + pair - (np.cumsum(n_lower) - n_lower)[hi[by_hi]]
         col = np.empty(ptr[-1], dtype=np.int64)
         col[diag], col[upper], col[lower] = np.arange(n), hi, lo
-
-        where = np.empty((n_cells, nl, nl), dtype=np.intp)
-        where[:, np.arange(nl), np.arange(nl)] = diag[cells]
-        inverse = inverse.reshape(n_cells, -1)
-        in_upper, in_lower = upper[inverse], lower[inverse]
-        ab = np.where(u < v, in_upper, in_lower)  # (u, v) is in row u
-        where[:, a, b], where[:, b, a] = ab, in_upper + in_lower - ab
-        self.where, self.n_nodes, self.nnz, self.dim = where, n, int(ptr[-1]), int(dim)
+        self.n_nodes, self.nnz, self.dim = n, int(ptr[-1]), int(dim)
         self._ptr, self._col = ptr, col  # the node pattern
         self._itype = np.int32 if dim * dim * self.nnz < np.iinfo(np.int32).max else np.int64
+        # what ``where`` is made from, on first use: the node pattern is ready before it
+        self._made_from = (cells, inverse.reshape(n_cells, -1), diag, upper, lower)
+
+    @cached_property
+    def where(self) -> np.ndarray:
+        cells, inverse, diag, upper, lower = self._made_from
+        del self._made_from
+        n_cells, nl = cells.shape
+        a, b = np.triu_indices(nl, k=1)
+        where = np.empty((n_cells, nl, nl), dtype=np.intp)
+        where[:, np.arange(nl), np.arange(nl)] = diag[cells]
+        in_upper, in_lower = upper[inverse], lower[inverse]
+        ab = np.where(cells[:, a] < cells[:, b], in_upper, in_lower)  # (u, v) is in row u
+        where[:, a, b], where[:, b, a] = ab, in_upper + in_lower - ab
+        return where
 
     @cached_property
     def _at(self) -> list:
