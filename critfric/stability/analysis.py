@@ -144,8 +144,11 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
                                                                      s["gamma"])
     pencil = sliding_pencil(system, K, M, state)
     t1 = time.perf_counter()
-    static = eigen.solve(K, system, state, method=s["method"], count=1, tol=s["tol"],
-                         maxiter=s["maxiter"], real_tol=s["real_tol"], backend=backend)
+    plan, prep.plan = prep.plan, None  # the static stage's analysis, if started in prepare
+    static = eigen.solve(K if plan is None else system.stiffness(*lame(1.0, nu), keep_zeros=True),
+                         system, state, method=s["method"], count=1, tol=s["tol"],
+                         maxiter=s["maxiter"], real_tol=s["real_tol"], backend=backend,
+                         plan=plan)
     divergence = {"positive": float(static.positive[0]) if len(static.positive) else None,
                   "negative": float(static.negative[0]) if len(static.negative) else None}
     t2 = time.perf_counter()
@@ -259,4 +262,5 @@ def stability_case(case: Case | dict | str | Path, *, overrides: dict[str, Any] 
 
     case: a :class:`Case`, a case file path, a shipped case name, or a dict of sections."""
     case = as_case(case, overrides=overrides)
-    return stability_prepared(prepare(case, max_dofs=max_dofs, trust_geo=trust_geo), case)
+    return stability_prepared(prepare(case, max_dofs=max_dofs, trust_geo=trust_geo, _plan=True),
+                              case)
