@@ -5,8 +5,9 @@ For each sliding direction (the state's own, f > 0, and the opposite one, f < 0)
 (:mod:`.locus`), the first coalescence is located and sharpened on the reduced model and
 found on the full pencil by Newton's method (:mod:`.fold`). One factorization of K_rr
 serves the modes, the reduced basis, the sharpening and Newton's bordered solves of both
-directions (freed before a bordered matrix is factored, where those stall). Divergence (kappa = 0) happens exactly at the
-static critical coefficients, computed by the static eigen stage itself.
+directions (freed before a bordered matrix is factored, where those stall). Divergence
+(kappa = 0) happens exactly at the static critical coefficients, computed by the static
+eigen stage itself (its analysis started during the assembly, as in ``solve``).
 """
 
 from __future__ import annotations
@@ -145,10 +146,11 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
     pencil = sliding_pencil(system, K, M, state)
     t1 = time.perf_counter()
     plan, prep.plan = prep.plan, None  # the static stage's analysis, if started in prepare
-    static = eigen.solve(K if plan is None else system.stiffness(*lame(1.0, nu), keep_zeros=True),
-                         system, state, method=s["method"], count=1, tol=s["tol"],
+    K_static = K if plan is None else system.stiffness(*lame(1.0, nu), keep_zeros=True)
+    static = eigen.solve(K_static, system, state, method=s["method"], count=1, tol=s["tol"],
                          maxiter=s["maxiter"], real_tol=s["real_tol"], backend=backend,
                          plan=plan)
+    del K_static
     divergence = {"positive": float(static.positive[0]) if len(static.positive) else None,
                   "negative": float(static.negative[0]) if len(static.negative) else None}
     t2 = time.perf_counter()

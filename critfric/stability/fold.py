@@ -17,7 +17,7 @@ FOLD_TOL). The bordered solves: :class:`.bordered.Deflated` (GMRES on the factor
 K_rr, given as ``solver``) or :class:`.bordered.Bordered` (an LU of the bordered matrix, and
 iterative refinement on it for the further steps), which also takes over where the deflated
 solves stall. Each solve's residual is checked on the bordered matrix itself, down to
-rounding for sigma and the null vectors (the Jacobian's solves to 1e-8).
+rounding for sigma and the null vectors (the Jacobian's solves to ROUGH_TOL).
 """
 
 from __future__ import annotations
