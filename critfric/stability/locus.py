@@ -308,7 +308,12 @@ def _sharpen(red: Reduced, pencil: SlidingPencil, factor, guess: Guess) -> Guess
         if k == 0:
             break
         # W' = [W, N] (W = [V, T]): W'^T b W' from W^T b W, one pass over V for all blocks
-        P = np.column_stack([b @ new for b in blocks] + [b.T @ new for b in blocks])
+        # (the columns b^T N: of K_rr and M_rr, symmetric, b N again)
+        P = np.empty((len(V), 8 * k))
+        for i, b in enumerate(blocks):
+            P[:, k * i:k * i + k] = b @ new
+        for i, b in enumerate(blocks):
+            P[:, k * (4 + i):k * (5 + i)] = P[:, k * i:k * i + k] if i in (0, 2) else b.T @ new
         WP = np.concatenate([V.T @ P, T[:, :t].T @ P])
         NP = new.T @ P
         mats = [np.block([[mat, WP[:, k * i:k * i + k]],
