@@ -60,13 +60,14 @@ def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray
     L_kf = pencil.L_kappa_f()
     F = Bordered(backend, order) if solver is None else solver.renewed()
     for step in range(1, MAX_STEPS + 1):
-        L = pencil.L(f, kappa)
+        B = pencil.B(f)  # L = A(f) - kappa B(f) and dL/dkappa = -B(f) from one B(f)
+        L, Lk = (pencil.A(f) - kappa * B).tocsr(), -B
         try:
-            df, dk, v, w = _step(F, pencil, L, L_kf, f, kappa, b, c)
+            df, dk, v, w = _step(F, pencil, L, Lk, L_kf, f, kappa, b, c)
         except NotConverged:  # the deflated solves stalled: factor the bordered matrix
             F.release()
             F = Bordered(backend, order)
-            df, dk, v, w = _step(F, pencil, L, L_kf, f, kappa, b, c)
+            df, dk, v, w = _step(F, pencil, L, Lk, L_kf, f, kappa, b, c)
         f, kappa = f + df, kappa + dk
         c, b = _unit(v), _unit(w)  # better borders: the current null vectors
         if abs(df) <= FOLD_TOL * max(abs(f), 1e-300) and abs(dk) <= FOLD_TOL * abs(kappa):
@@ -79,9 +80,10 @@ def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray
                       f"{f0:.6g} (kappa {kappa0:.6g}); try more --steps or a finer mesh")
 
 
-def _step(F, pencil: SlidingPencil, L, L_kf, f: float, kappa: float, b: np.ndarray,
+def _step(F, pencil: SlidingPencil, L, Lk, L_kf, f: float, kappa: float, b: np.ndarray,
           c: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
-    """One Newton step on (sigma, sigma_kappa) = 0: (df, dkappa) and the null vectors v, w."""
+    """One Newton step on (sigma, sigma_kappa) = 0 at L = L(f, kappa), Lk = dL/dkappa:
+    (df, dkappa) and the null vectors v, w."""
     n = pencil.size
     F.set(L, b, c)
     e = np.zeros(n + 1)
@@ -89,7 +91,7 @@ def _step(F, pencil: SlidingPencil, L, L_kf, f: float, kappa: float, b: np.ndarr
     vs = F.solve(e)
     ws = F.solve(e, transpose=True)
     v, sigma, w = vs[:n], vs[n], ws[:n]
-    Lk, Lf = pencil.L_kappa(f), pencil.L_f(kappa)
+    Lf = pencil.L_f(kappa)
     Lkv, Lfv = Lk @ v, Lf @ v
     s_k, s_f = -w @ Lkv, -w @ Lfv
     rhs = np.zeros((n + 1, 2))

@@ -115,7 +115,8 @@ def reduce(pencil: SlidingPencil, modes: int, *, backend: str = "scipy", order=N
     exact in the model); "modal": the first-order corrections K^-1 G C Phi, K^-1 C^T G^T Phi
     (C = K_nr, M_nr) of the ``modes`` + ``CORRECTED_EXTRA`` lowest (4 columns a mode,
     independent of p); "auto": "contact" while 3 p is at most the modal columns. ``factor``:
-    a factorization of K_rr to use (e.g. the static stage's), else one is made.
+    a factorization of K_rr to use (the one that also serves the sharpening and
+    Newton's bordered solves), else one is made.
 
     Dense products run on one BLAS thread: after PARDISO's threads, two threads on a busy
     2-core machine made them up to 30x slower (ARPACK's own work among them)."""

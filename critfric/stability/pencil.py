@@ -52,6 +52,7 @@ class SlidingPencil:
         return (self.Krr - f * (self.G @ self.Knr)).tocsr()
 
     def B(self, f: float) -> sp.csr_matrix:
+        """-dL/dkappa."""
         return (self.Mrr - f * (self.G @ self.Mnr)).tocsr()
 
     def L(self, f: float, kappa: float) -> sp.csr_matrix:
@@ -60,10 +61,6 @@ class SlidingPencil:
     def L_f(self, kappa: float) -> sp.csr_matrix:
         """dL/df."""
         return (-(self.G @ (self.Knr - kappa * self.Mnr))).tocsr()
-
-    def L_kappa(self, f: float) -> sp.csr_matrix:
-        """dL/dkappa = -B(f)."""
-        return -self.B(f)
 
     def L_kappa_f(self) -> sp.csr_matrix:
         """d2L/(dkappa df)."""

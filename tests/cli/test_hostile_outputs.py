@@ -308,9 +308,8 @@ def test_running_out_of_memory_is_a_message_not_a_traceback(capsys):
 
     from critfric.cli.failures import reported
 
-    with pytest.raises(typer.Exit) as ended:
-        with reported("nothing was written"):
-            raise MemoryError
+    with pytest.raises(typer.Exit) as ended, reported("nothing was written"):
+        raise MemoryError
     err = capsys.readouterr().err
     assert ended.value.exit_code == 1 and "Traceback" not in err
     assert "out of memory (nothing was written)" in err and "coarser mesh" in err
