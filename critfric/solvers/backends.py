@@ -101,18 +101,20 @@ class ScipyFactor:
 
 # ------------------------------------------------------------------------------- interface
 def factorize(A: sp.spmatrix, *, symmetric: bool = True, backend: str = "scipy", order=None,
-              diagonal: bool = False):
+              diagonal: bool = False, plan: PardisoPlan | None = None):
     """Factor a sparse square matrix once; solve many right-hand sides. ``order``: a
     fill-reducing permutation for backends without a good ordering of their own (scipy).
     ``diagonal``: a structurally symmetric, unsymmetric matrix factored with diagonal pivots
     in that order (scipy; ~10x less fill and time than threshold pivoting on the stability
     pencils, measured); the caller checks its solves' residuals (PARDISO's pivoting is its
-    own either way)."""
+    own either way). ``plan``: a :class:`PardisoPlan` (no Schur rows) of symmetric A's
+    pattern, used if it matches."""
     if A.shape[0] == 0:
         raise SolverError("nothing to factor: the system has no free degree of freedom")
     backend = resolve_backend(backend)
     if backend == "pardiso":
-        return PardisoFactor(A, symmetric=symmetric)
+        factor = plan.factor(A) if plan is not None and symmetric else None
+        return factor or PardisoFactor(A, symmetric=symmetric)
     return ScipyFactor(A, symmetric=symmetric or diagonal, order=order)
 
 

@@ -221,16 +221,18 @@ class PardisoFactor:
 
 
 class PardisoPlan:
-    """PARDISO's analysis (phase 11) of a symmetric positive definite matrix with Schur rows
-    ``index``, from its upper-triangle pattern alone (sorted CSR ``indptr``, ``indices``),
-    run in a background thread while the caller computes the values: METIS is sequential
-    (~half of a factorization at 1 M rows), so the other cores assemble meanwhile.
-    :meth:`schur` finishes it on a matrix of that pattern, once."""
+    """PARDISO's analysis (phase 11) of a symmetric positive definite matrix, with Schur rows
+    ``index`` if given, from its upper-triangle pattern alone (sorted CSR ``indptr``,
+    ``indices``), run in a background thread while the caller computes the values: METIS is
+    sequential (~half of a factorization at 1 M rows), so the other cores work meanwhile.
+    :meth:`schur` (with Schur rows) or :meth:`factor` (without) finishes it on a matrix of
+    that pattern, once."""
 
-    def __init__(self, indptr: np.ndarray, indices: np.ndarray, index: np.ndarray):
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray, index: np.ndarray | None = None):
         self._factor = PardisoFactor.__new__(PardisoFactor)
         self._factor._setup(indptr, indices, symmetric=True)  # the caller's thread count
-        self._index, self._error = np.asarray(index, dtype=np.int64), None
+        self._index = None if index is None else np.asarray(index, dtype=np.int64)
+        self._error = None
         self._thread = threading.Thread(target=self._run, args=(self._factor,),
                                         name="critfric-pardiso-analysis", daemon=True)
         self._thread.start()
@@ -241,15 +243,23 @@ class PardisoPlan:
         except BaseException as exc:  # noqa: BLE001 - handed over to the caller's thread
             self._error = exc
 
-    def schur(self, A: sp.spmatrix, index: np.ndarray):
+    def schur(self, A: sp.spmatrix, index: np.ndarray) -> PardisoFactor | None:
         """The :class:`PardisoFactor` of A with Schur rows ``index``, or None if A's upper
         triangle or ``index`` are not the ones analysed (the caller factors afresh)."""
+        return self._finish(A, np.asarray(index))
+
+    def factor(self, A: sp.spmatrix) -> PardisoFactor | None:
+        """The plain :class:`PardisoFactor` of A (a plan without Schur rows), or None as for
+        :meth:`schur`."""
+        return self._finish(A, None)
+
+    def _finish(self, A: sp.spmatrix, index: np.ndarray | None) -> PardisoFactor | None:
         factor, self._factor = self._factor, None
-        if factor is None:
+        if factor is None or (index is None) != (self._index is None):
             return None
         U = upper_triangle(A)
         if not (np.array_equal(U.indptr, factor._ia) and np.array_equal(U.indices, factor._ja)
-                and np.array_equal(np.asarray(index), self._index)):
+                and (index is None or np.array_equal(index, self._index))):
             return None
         _check_diagonal(A)
         self._thread.join()

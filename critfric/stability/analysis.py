@@ -32,7 +32,7 @@ from ..solvers.from_case import check_dimension, contact_state
 from ..solvers.ordering import fill_order
 from . import fold, locus
 from .bordered import Deflated
-from .pencil import sliding_pencil
+from .pencil import kept_dofs, sliding_pencil
 
 DIRECTIONS = ("positive", "negative")
 DEFAULT_RANGE = 10.0  # friction range each way when the case has no real static coefficient
@@ -140,10 +140,15 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
     # not depend on them, kappa = omega^2 scales as E / (density ell^2)
     ell = float(np.ptp(prep.mesh.points, axis=0).max())
     K = system.stiffness(*lame(1.0, nu))
-    M = system.restrict(assemble_mass(prep.mesh, 1.0)) / ell**2
     state = contact_state(case, system) or ContactState.all_slipping(system.n_contact,
                                                                      s["gamma"])
-    pencil = sliding_pencil(system, K, M, state)
+    kept = kept_dofs(system, state)[1]
+    Krr = K[kept][:, kept].tocsr()
+    # K_rr's analysis in the background, beside the mass assembly and the static stage
+    krr_plan = locus.plan_of(Krr, backend)
+    M = system.restrict(assemble_mass(prep.mesh, 1.0)) / ell**2
+    pencil = sliding_pencil(system, K, M, state, Krr=Krr)
+    del Krr
     t1 = time.perf_counter()
     plan, prep.plan = prep.plan, None  # the static stage's analysis, if started in prepare
     K_static = K if plan is None else system.stiffness(*lame(1.0, nu), keep_zeros=True)
@@ -169,7 +174,9 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
                         key="stability.steps").located(case.source)
     order = fill_order(system, pencil.kept) if backend == "scipy" else None
     # one factorization of K_rr serves the modes, the reduced basis and the sharpening
-    factor = locus.factor_of(pencil, backend, order) if pencil.size > locus.FULL_MAX else None
+    factor = (locus.factor_of(pencil, backend, order, krr_plan)
+              if pencil.size > locus.FULL_MAX else None)
+    krr_plan = None
     red = locus.reduce(pencil, modes, backend=backend, order=order, factor=factor)
     if np.any(red.omega2[:modes] <= 0):
         raise SolverError("a free-vibration eigenvalue is not positive: check that the "

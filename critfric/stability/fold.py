@@ -71,8 +71,9 @@ def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray
         f, kappa = f + df, kappa + dk
         c, b = _unit(v), _unit(w)  # better borders: the current null vectors
         if abs(df) <= FOLD_TOL * max(abs(f), 1e-300) and abs(dk) <= FOLD_TOL * abs(kappa):
-            L = pencil.L(f, kappa)
-            res = np.linalg.norm(L @ c) / max(abs(L).max() * np.sqrt(n), 1e-300)
+            # |L| from the last step's matrix: its entries differ by the step, ~1e-10
+            res = (np.linalg.norm(pencil.apply_L(f, kappa, c))
+                   / max(abs(L).max() * np.sqrt(n), 1e-300))
             return Fold(f, kappa, c, b, step, float(res), F)
         if not (np.isfinite(f) and np.isfinite(kappa)):
             break

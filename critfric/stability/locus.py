@@ -25,7 +25,8 @@ import scipy.sparse.linalg as spla
 from threadpoolctl import threadpool_limits
 
 from ..errors import SolverError
-from ..solvers.backends import factorize
+from ..solvers.backends import PardisoPlan, factorize
+from ..solvers.pardiso import upper_triangle
 from . import fold
 from .bordered import RANK_TOL, orthonormal
 from .pencil import SlidingPencil
@@ -85,15 +86,58 @@ class Reduced:
         return y if self.V is None else self.V @ y
 
 
-def factor_of(pencil: SlidingPencil, backend: str, order):
-    """A factorization of K_rr."""
-    return factorize(pencil.Krr.tocsc(), symmetric=True, backend=backend, order=order)
+def plan_of(Krr: sp.csr_matrix, backend: str) -> PardisoPlan | None:
+    """K_rr's PARDISO analysis, started in the background where :func:`reduce` will factor
+    K_rr on PARDISO (else None): pass it to :func:`factor_of`."""
+    if backend != "pardiso" or Krr.shape[0] <= FULL_MAX:
+        return None
+    U = upper_triangle(Krr)
+    return PardisoPlan(U.indptr, U.indices)
 
 
-def _blocks(pencil: SlidingPencil) -> list:
+def factor_of(pencil: SlidingPencil, backend: str, order, plan: PardisoPlan | None = None):
+    """A factorization of K_rr (``plan``: :func:`plan_of` K_rr, if started)."""
+    return factorize(pencil.Krr if plan is not None else pencil.Krr.tocsc(), symmetric=True,
+                     backend=backend, order=order, plan=plan)
+
+
+class Block:
+    """A sparse block b of the pencil and the projections X^T b Y: through b's few nonzero
+    rows and columns where it has them (the friction blocks G K_nr, G M_nr: the slipping
+    nodes' tangential rows, the columns next to them), else by one product over all rows."""
+
+    def __init__(self, b: sp.csr_matrix, symmetric: bool):
+        self.b, self.symmetric = b, symmetric
+        self.rows = self.cols = self.sub = None
+        rows = np.flatnonzero(np.diff(b.indptr))
+        if len(rows) < b.shape[0] // 4:
+            cols = np.unique(b.indices)
+            if len(cols) < b.shape[0] // 4:
+                self.rows, self.cols, self.sub = rows, cols, b[rows][:, cols].tocsr()
+
+    def form(self, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+        """X^T b Y."""
+        if self.sub is None:
+            return X.T @ (self.b @ Y)
+        return X[self.rows].T @ (self.sub @ Y[self.cols])
+
+    def borders(self, Ws: list[np.ndarray], N: np.ndarray) -> tuple:
+        """W^T b N, W^T b^T N (W: the column blocks Ws side by side) and N^T b N."""
+        if self.sub is None:
+            bN = self.b @ N
+            right = np.concatenate([W.T @ bN for W in Ws])
+            below = right if self.symmetric else np.concatenate([W.T @ (self.b.T @ N)
+                                                                 for W in Ws])
+            return right, below, N.T @ bN
+        bN, bTN = self.sub @ N[self.cols], self.sub.T @ N[self.rows]
+        return (np.concatenate([W[self.rows].T @ bN for W in Ws]),
+                np.concatenate([W[self.cols].T @ bTN for W in Ws]), N[self.rows].T @ bN)
+
+
+def _blocks(pencil: SlidingPencil) -> list[Block]:
     """The sparse blocks of the pencil, L = (A0 - f A1) - kappa (B0 - f B1)."""
-    return [pencil.Krr, (pencil.G @ pencil.Knr).tocsr(), pencil.Mrr,
-            (pencil.G @ pencil.Mnr).tocsr()]
+    return [Block(pencil.Krr, True), Block(pencil.GKnr, False), Block(pencil.Mrr, True),
+            Block(pencil.GMnr, False)]
 
 
 def reduced_size(n: int, p: int, modes: int) -> int:
@@ -123,7 +167,7 @@ def reduce(pencil: SlidingPencil, modes: int, *, backend: str = "scipy", order=N
     n = pencil.size
     blocks = _blocks(pencil)
     if n <= FULL_MAX:
-        A0, A1, B0, B1 = (b.toarray() for b in blocks)
+        A0, A1, B0, B1 = (b.b.toarray() for b in blocks)
         w, vecs = la.eigh(A0, B0)
         return Reduced(None, A0, A1, B0, B1, w, vecs)
     factor = factor or factor_of(pencil, backend, order)
@@ -156,7 +200,7 @@ def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str, blocks) -> Re
         loads = [G @ (pencil.Knr @ low), G @ (pencil.Mnr @ low),
                  pencil.Knr.T @ (GT @ low), pencil.Mnr.T @ (GT @ low)]
     V = orthonormal(np.column_stack([vecs, factor.solve(np.column_stack(loads))]))
-    A0, A1, B0, B1 = (V.T @ (b @ V) for b in blocks)
+    A0, A1, B0, B1 = (b.form(V, V) for b in blocks)
     return Reduced(V, A0, A1, B0, B1, w, vecs)
 
 
@@ -300,26 +344,18 @@ def _sharpen(red: Reduced, pencil: SlidingPencil, factor, guess: Guess) -> Guess
         if (rnd and still) or rnd == SHARPEN_ROUNDS:
             break
         v, w = lift(np.column_stack([y, z])).T
-        Bv = blocks[2] @ v - f * (blocks[3] @ v)
-        BTw = blocks[2].T @ w - f * (blocks[3].T @ w)
-        Lv = blocks[0] @ v - f * (blocks[1] @ v) - kappa * Bv
-        LTw = blocks[0].T @ w - f * (blocks[1].T @ w) - kappa * BTw
+        Bv = pencil.Mrr @ v - f * (pencil.GMnr @ v)
+        BTw = pencil.Mrr @ w - f * (pencil.GMnr.T @ w)
+        Lv = pencil.Krr @ v - f * (pencil.GKnr @ v) - kappa * Bv
+        LTw = pencil.Krr @ w - f * (pencil.GKnr.T @ w) - kappa * BTw
         new = _outside(V, T[:, :t], factor.solve(np.column_stack([Lv, LTw, Bv, BTw])))
         k = new.shape[1]
         if k == 0:
             break
-        # W' = [W, N] (W = [V, T]): W'^T b W' from W^T b W, one pass over V for all blocks
-        # (the columns b^T N: of K_rr and M_rr, symmetric, b N again)
-        P = np.empty((len(V), 8 * k))
-        for i, b in enumerate(blocks):
-            P[:, k * i:k * i + k] = b @ new
-        for i, b in enumerate(blocks):
-            P[:, k * (4 + i):k * (5 + i)] = P[:, k * i:k * i + k] if i in (0, 2) else b.T @ new
-        WP = np.concatenate([V.T @ P, T[:, :t].T @ P])
-        NP = new.T @ P
-        mats = [np.block([[mat, WP[:, k * i:k * i + k]],
-                          [WP[:, k * (4 + i):k * (5 + i)].T, NP[:, k * i:k * i + k]]])
-                for i, mat in enumerate(mats)]
+        # W' = [W, N] (W = [V, T]): W'^T b W' from W^T b W, the borders W^T b N, W^T b^T N
+        edges = [b.borders([V, T[:, :t]], new) for b in blocks]
+        mats = [np.block([[mat, right], [below.T, corner]])
+                for mat, (right, below, corner) in zip(mats, edges)]
         T[:, t:t + k] = new
         t += k
         y, z = np.concatenate([y, np.zeros(k)]), np.concatenate([z, np.zeros(k)])

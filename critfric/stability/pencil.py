@@ -20,6 +20,7 @@ kappa = 0 it is (3.2) with alpha = f (divergence: the static critical coefficien
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -47,24 +48,37 @@ class SlidingPencil:
     def size(self) -> int:
         return len(self.kept)
 
+    @cached_property
+    def GKnr(self) -> sp.csr_matrix:
+        """G K_nr: the slipping normal rows of K on the tangential rows (-dA/df)."""
+        return (self.G @ self.Knr).tocsr()
+
+    @cached_property
+    def GMnr(self) -> sp.csr_matrix:
+        return (self.G @ self.Mnr).tocsr()
+
     def A(self, f: float) -> sp.csr_matrix:
         """L = A(f) - kappa B(f)."""
-        return (self.Krr - f * (self.G @ self.Knr)).tocsr()
+        return (self.Krr - f * self.GKnr).tocsr()
 
     def B(self, f: float) -> sp.csr_matrix:
         """-dL/dkappa."""
-        return (self.Mrr - f * (self.G @ self.Mnr)).tocsr()
+        return (self.Mrr - f * self.GMnr).tocsr()
 
     def L(self, f: float, kappa: float) -> sp.csr_matrix:
         return (self.A(f) - kappa * self.B(f)).tocsr()
 
     def L_f(self, kappa: float) -> sp.csr_matrix:
         """dL/df."""
-        return (-(self.G @ (self.Knr - kappa * self.Mnr))).tocsr()
+        return (kappa * self.GMnr - self.GKnr).tocsr()
 
     def L_kappa_f(self) -> sp.csr_matrix:
         """d2L/(dkappa df)."""
-        return (self.G @ self.Mnr).tocsr()
+        return self.GMnr
+
+    def apply_L(self, f: float, kappa: float, v: np.ndarray) -> np.ndarray:
+        """L(f, kappa) v from the blocks (no sum matrix formed)."""
+        return self.Krr @ v - f * (self.GKnr @ v) - kappa * (self.Mrr @ v - f * (self.GMnr @ v))
 
     def free_vector(self, v: np.ndarray) -> np.ndarray:
         """Kept-DOF vector(s) -> free-DOF vector(s) (zeros on the eliminated DOFs)."""
@@ -82,9 +96,8 @@ class SlidingPencil:
         return u * (np.abs(flat[j]) / flat[j]) / np.abs(flat[j]) if flat[j] != 0 else u
 
 
-def sliding_pencil(system: ContactSystem, K: sp.spmatrix, M: sp.spmatrix,
-                   state: ContactState) -> SlidingPencil:
-    """The pencil of a contact state (stiffness K and mass M on the free DOFs, n/t basis)."""
+def kept_dofs(system: ContactSystem, state: ContactState) -> tuple[np.ndarray, np.ndarray]:
+    """The slipping contact nodes of a state and the free-DOF positions of its kept DOFs."""
     if len(state.status) != system.n_contact:
         raise SolverError("the contact state does not match the number of contact nodes")
     slip = np.flatnonzero(state.status == SLIP)
@@ -94,8 +107,16 @@ def sliding_pencil(system: ContactSystem, K: sp.spmatrix, M: sp.spmatrix,
     elim = np.concatenate([system.cn[slip], system.cn[stuck], system.ct[stuck]])
     keep = np.ones(system.n_dofs, dtype=bool)
     keep[elim] = False
-    kept = np.flatnonzero(keep)
-    position = np.cumsum(keep) - 1
+    return slip, np.flatnonzero(keep)
+
+
+def sliding_pencil(system: ContactSystem, K: sp.spmatrix, M: sp.spmatrix,
+                   state: ContactState, Krr: sp.csr_matrix | None = None) -> SlidingPencil:
+    """The pencil of a contact state (stiffness K and mass M on the free DOFs, n/t basis;
+    ``Krr``: K on the kept DOFs of :func:`kept_dofs`, if already taken)."""
+    slip, kept = kept_dofs(system, state)
+    position = np.full(system.n_dofs, -1)
+    position[kept] = np.arange(len(kept))
     K, M = sp.csr_matrix(K), sp.csr_matrix(M)
     n_rows = system.cn[slip]
     G = sp.csr_matrix((state.gamma[slip].astype(float),
@@ -103,5 +124,6 @@ def sliding_pencil(system: ContactSystem, K: sp.spmatrix, M: sp.spmatrix,
                       shape=(len(kept), len(slip)))
     assert np.all(state.status[slip] != FREE)
     return SlidingPencil(system=system, state=state, kept=kept, slip=slip,
-                         Krr=K[kept][:, kept].tocsr(), Mrr=M[kept][:, kept].tocsr(),
+                         Krr=K[kept][:, kept].tocsr() if Krr is None else Krr,
+                         Mrr=M[kept][:, kept].tocsr(),
                          Knr=K[n_rows][:, kept].tocsr(), Mnr=M[n_rows][:, kept].tocsr(), G=G)

@@ -500,3 +500,25 @@ def test_a_schur_factorization_solves_the_whole_system(backend):
     for b in (rng.standard_normal(K.shape[0]), rng.standard_normal((K.shape[0], 3))):
         x = factor.solve(b)
         assert np.abs(K @ x - b).max() <= 1e-10 * np.abs(b).max()
+
+
+@pytest.mark.skipif("pardiso" not in AVAILABLE,
+                    reason="backend 'pardiso' not installed (pip install critfric[fast])")
+def test_pardiso_plan_without_schur_rows_gives_the_plain_factorization():
+    """A plan without Schur rows finishes as the plain factorization (factorize(plan=...)),
+    to rounding; it is declined where a Schur complement is asked, and the reverse."""
+    prep = prepare(loads_case(square_case(element="P1", size=0.1)))
+    system = prep.system
+    K = system.stiffness(*lame(1.0, 0.3)).tocsr()
+    U = upper_triangle(K)
+    b = np.random.default_rng(7).standard_normal((K.shape[0], 3))
+    whole = linsolve.factorize(K, backend="pardiso").solve(b)
+    plan = linsolve.PardisoPlan(U.indptr, U.indices)
+    planned = linsolve.factorize(K, backend="pardiso", plan=plan)
+    assert planned._index is None and plan.factor(K) is None  # used once
+    x = planned.solve(b)
+    np.testing.assert_allclose(x, whole, rtol=0, atol=1e-12 * np.abs(whole).max())
+    np.testing.assert_allclose(K @ x, b, rtol=0, atol=1e-10 * np.abs(b).max())
+    index = np.concatenate([system.cn, system.ct])
+    assert linsolve.PardisoPlan(U.indptr, U.indices).schur(K, index) is None
+    assert linsolve.PardisoPlan(U.indptr, U.indices, index).factor(K) is None
