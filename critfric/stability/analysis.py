@@ -7,7 +7,9 @@ found on the full pencil by Newton's method (:mod:`.fold`). One factorization of
 serves the modes, the reduced basis, the sharpening and Newton's bordered solves of both
 directions (freed before a bordered matrix is factored, where those stall). Divergence
 (kappa = 0) happens exactly at the static critical coefficients, computed by the static
-eigen stage itself (its analysis started during the assembly, as in ``solve``).
+eigen stage itself (its analysis started during the assembly, as in ``solve``), first: K_rr's
+analysis then runs in the background beside the mass assembly. OpenBLAS runs on one thread
+throughout (:func:`.locus.blas_threads`), PARDISO on its own.
 """
 
 from __future__ import annotations
@@ -131,33 +133,36 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
     """Thresholds of a prepared case at its Poisson ratio, density and [stability] keys."""
     prep.check_case(case)
     check_dimension(case, prep.mesh.dim, "critfric stability")
+    with locus.blas_threads(1):  # see locus.blas_threads
+        return _stability(prep, case)
+
+
+def _stability(prep: Prepared, case: Case) -> StabilityResult:
     t0 = time.perf_counter()
     E, nu, rho = case.material["E"], case.material["nu"], case.material["density"]
     s, st = case.solve, case.stability
     backend = resolve_backend(s["backend"])
     system = prep.system
+    state = contact_state(case, system) or ContactState.all_slipping(system.n_contact,
+                                                                     s["gamma"])
+    kept = kept_dofs(system, state)[1]
+    plan, prep.plan = prep.plan, None  # the static stage's analysis, if started in prepare
+    static = eigen.solve(system.stiffness(*lame(1.0, nu), keep_zeros=plan is not None),
+                         system, state, method=s["method"], count=1, tol=s["tol"],
+                         maxiter=s["maxiter"], real_tol=s["real_tol"], backend=backend,
+                         plan=plan)
+    divergence = {"positive": float(static.positive[0]) if len(static.positive) else None,
+                  "negative": float(static.negative[0]) if len(static.negative) else None}
+    t1 = time.perf_counter()
     # solved at E = density = 1 and the body's extent ell = 1 (M / ell^2): the thresholds do
     # not depend on them, kappa = omega^2 scales as E / (density ell^2)
     ell = float(np.ptp(prep.mesh.points, axis=0).max())
     K = system.stiffness(*lame(1.0, nu))
-    state = contact_state(case, system) or ContactState.all_slipping(system.n_contact,
-                                                                     s["gamma"])
-    kept = kept_dofs(system, state)[1]
     Krr = K[kept][:, kept].tocsr()
-    # K_rr's analysis in the background, beside the mass assembly and the static stage
-    krr_plan = locus.plan_of(Krr, backend)
+    krr_plan = locus.plan_of(Krr, backend)  # K_rr's analysis beside the mass assembly
     M = system.restrict(assemble_mass(prep.mesh, 1.0)) / ell**2
     pencil = sliding_pencil(system, K, M, state, Krr=Krr)
-    del Krr
-    t1 = time.perf_counter()
-    plan, prep.plan = prep.plan, None  # the static stage's analysis, if started in prepare
-    K_static = K if plan is None else system.stiffness(*lame(1.0, nu), keep_zeros=True)
-    static = eigen.solve(K_static, system, state, method=s["method"], count=1, tol=s["tol"],
-                         maxiter=s["maxiter"], real_tol=s["real_tol"], backend=backend,
-                         plan=plan)
-    del K_static
-    divergence = {"positive": float(static.positive[0]) if len(static.positive) else None,
-                  "negative": float(static.negative[0]) if len(static.negative) else None}
+    del K, Krr, M  # the pencil holds its blocks
     t2 = time.perf_counter()
     notes, warnings = list(static.notes), list(static.warnings)
     modes = min(st["modes"], pencil.size)
@@ -217,7 +222,7 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
     solver = found = None
     t5 = time.perf_counter()
     friction, kappa = _merge(parts)
-    timings = dict(prep.seconds, mass=t1 - t0, static=t2 - t1, modes=t3 - t2, branches=t4 - t3,
+    timings = dict(prep.seconds, static=t1 - t0, mass=t2 - t1, modes=t3 - t2, branches=t4 - t3,
                    newton=t5 - t4)
     return StabilityResult(
         case=case, flutter=flutter, flutter_kappa=flutter_kappa, divergence=divergence,
