@@ -173,30 +173,35 @@ class PardisoFactor:
         complement (symmetric): the forward substitution (phase 331) leaves the reduced
         right-hand side on the Schur rows, S solves them, the backward one (333) the rest."""
         b = np.asarray(b, dtype=np.float64)
-        if self._index is None and b.ndim == 2 and b.shape[1] > SOLVE_BLOCK:
+        if self._index is None and b.ndim == 2:  # blocks of columns, into one column-major x
             out = np.empty_like(b, order="F")
             for j in range(0, b.shape[1], SOLVE_BLOCK):
-                out[:, j:j + SOLVE_BLOCK] = self.solve(b[:, j:j + SOLVE_BLOCK],
-                                                       transpose=transpose)
+                x = out[:, j:j + SOLVE_BLOCK].T  # C-contiguous: PARDISO writes it in place
+                self._solve(np.ascontiguousarray(b[:, j:j + SOLVE_BLOCK].T), x, transpose)
             return out
         bt = np.ascontiguousarray(b.T)  # column-major right-hand sides
-        x = np.zeros_like(bt)
         if self._index is not None:
             if self._cho is None:
                 self._cho = la.cho_factor(self.S, check_finite=False)
             nrhs = 1 if b.ndim == 1 else b.shape[1]
+            x = np.zeros_like(bt)
             self._call(331, nrhs, bt, x)
             y = x.T.copy()
             y[self._index] = la.cho_solve(self._cho, y[self._index], check_finite=False)
             x = np.zeros_like(bt)
             self._call(333, nrhs, np.ascontiguousarray(y.T), x)
             return x.T
+        x = np.empty_like(bt)  # every entry written
+        self._solve(bt, x, transpose)
+        return x
+
+    def _solve(self, bt: np.ndarray, x: np.ndarray, transpose: bool) -> None:
+        """Phase 33 on C-contiguous right-hand sides bt, (n,) or (k, n), into x (same shape)."""
         self._iparm[11] = 2 if transpose and self.mtype != 2 else 0  # A^T x = b
         try:
-            self._call(33, 1 if b.ndim == 1 else b.shape[1], bt, x)
+            self._call(33, 1 if bt.ndim == 1 else bt.shape[0], bt, x)
         finally:
             self._iparm[11] = 0
-        return x.T
 
     def refactor(self, A: sp.spmatrix) -> bool:
         """Factor A in place of this general matrix's values, on its analysis (phase 22 only:
