@@ -8,12 +8,13 @@ serves the modes, the reduced basis, the sharpening and Newton's bordered solves
 directions (freed before a bordered matrix is factored, where those stall). Divergence
 (kappa = 0) happens exactly at the static critical coefficients, computed by the static
 eigen stage itself (its analysis started during the assembly, as in ``solve``), first: K_rr's
-analysis then runs in the background beside the mass assembly. OpenBLAS runs on one thread
-throughout (:func:`.locus.blas_threads`), PARDISO on its own.
+analysis then runs in the background beside the mass assembly. From there on OpenBLAS runs
+on one thread (:func:`.locus.blas_threads`), PARDISO on its own.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -133,11 +134,11 @@ def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
     """Thresholds of a prepared case at its Poisson ratio, density and [stability] keys."""
     prep.check_case(case)
     check_dimension(case, prep.mesh.dim, "critfric stability")
-    with locus.blas_threads(1):  # see locus.blas_threads
-        return _stability(prep, case)
+    with contextlib.ExitStack() as threads:
+        return _stability(prep, case, threads)
 
 
-def _stability(prep: Prepared, case: Case) -> StabilityResult:
+def _stability(prep: Prepared, case: Case, threads: contextlib.ExitStack) -> StabilityResult:
     t0 = time.perf_counter()
     E, nu, rho = case.material["E"], case.material["nu"], case.material["density"]
     s, st = case.solve, case.stability
@@ -154,6 +155,7 @@ def _stability(prep: Prepared, case: Case) -> StabilityResult:
     divergence = {"positive": float(static.positive[0]) if len(static.positive) else None,
                   "negative": float(static.negative[0]) if len(static.negative) else None}
     t1 = time.perf_counter()
+    threads.enter_context(locus.blas_threads(1))  # after the static stage (as in solve)
     # solved at E = density = 1 and the body's extent ell = 1 (M / ell^2): the thresholds do
     # not depend on them, kappa = omega^2 scales as E / (density ell^2)
     ell = float(np.ptp(prep.mesh.points, axis=0).max())
