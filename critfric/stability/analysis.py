@@ -146,7 +146,10 @@ def _stability(prep: Prepared, case: Case, threads: contextlib.ExitStack) -> Sta
     system = prep.system
     state = contact_state(case, system) or ContactState.all_slipping(system.n_contact,
                                                                      s["gamma"])
-    kept = kept_dofs(system, state)[1]
+    slip, kept = kept_dofs(system, state)
+    modes = min(st["modes"], len(kept))
+    _check_work(st["steps"], locus.reduced_size(len(kept), len(slip), modes), modes,
+                case.source)  # before any factorization
     plan, prep.plan = prep.plan, None  # the static stage's analysis, if started in prepare
     static = eigen.solve(system.stiffness(*lame(1.0, nu), keep_zeros=plan is not None),
                          system, state, method=s["method"], count=1, tol=s["tol"],
@@ -167,18 +170,8 @@ def _stability(prep: Prepared, case: Case, threads: contextlib.ExitStack) -> Sta
     del K, Krr, M  # the pencil holds its blocks
     t2 = time.perf_counter()
     notes, warnings = list(static.notes), list(static.warnings)
-    modes = min(st["modes"], pencil.size)
     if modes < st["modes"]:
         notes.append(f"only {pencil.size} degrees of freedom: {modes} modes followed")
-    d = locus.reduced_size(pencil.size, pencil.G.shape[1], modes)
-    if 2 * st["steps"] * float(d) ** 3 > locus.WORK_MAX:
-        minutes = 2 * st["steps"] * float(d) ** 3 * locus.SECONDS_PER_D3 / 60
-        raise CaseError(f"{st['steps']} friction steps on a reduced model of size {d} "
-                        f"({modes} modes) would take about {minutes:.0f} minutes: "
-                        "2 x steps x size^3 must be at most "
-                        f"{locus.WORK_MAX:.0e}; lower [stability] steps (at most "
-                        f"{int(locus.WORK_MAX / (2 * d ** 3))}) or modes",
-                        key="stability.steps").located(case.source)
     order = fill_order(system, pencil.kept) if backend == "scipy" else None
     # one factorization of K_rr serves the modes, the reduced basis and the sharpening
     factor = (locus.factor_of(pencil, backend, order, krr_plan)
@@ -235,6 +228,19 @@ def _stability(prep: Prepared, case: Case, threads: contextlib.ExitStack) -> Sta
         element=case.mesh["element"], size=case.mesh["size"], h=prep.mesh.diameter,
         backend=backend, seconds=sum(timings.values()), timings=timings, newton_steps=steps,
         warnings=warnings, notes=notes)
+
+
+def _check_work(steps: int, d: int, modes: int, source: str) -> None:
+    """CaseError if following ``steps`` friction steps each way on a reduced model of size d
+    would exceed locus.WORK_MAX."""
+    if 2 * steps * float(d) ** 3 > locus.WORK_MAX:
+        minutes = 2 * steps * float(d) ** 3 * locus.SECONDS_PER_D3 / 60
+        raise CaseError(f"{steps} friction steps on a reduced model of size {d} "
+                        f"({modes} modes) would take about {minutes:.0f} minutes: "
+                        "2 x steps x size^3 must be at most "
+                        f"{locus.WORK_MAX:.0e}; lower [stability] steps (at most "
+                        f"{int(locus.WORK_MAX / (2 * d ** 3))}) or modes",
+                        key="stability.steps").located(source)
 
 
 def _kappa_scale(E: float, density: float, ell: float, top: float, source: str) -> float:

@@ -16,7 +16,7 @@ from critfric.case.schema import load_case
 from critfric.fem.assembly import assemble_mass, lame
 from critfric.solve import prepare, solve_case
 from critfric.solvers.eigen import ContactState
-from critfric.stability import fold, locus, sliding_pencil, stability_case
+from critfric.stability import analysis, fold, locus, sliding_pencil, stability_case
 from critfric.stability.pencil import SlidingPencil
 
 
@@ -185,8 +185,13 @@ def test_bad_friction_range(bad, tmp_path):
     assert not (tmp_path / "x.h5").exists()
 
 
-def test_a_request_of_hours_is_refused_up_front(tmp_path):
-    # 200 modes, 101 contact nodes: a reduced model of 513, 5000 steps each way ~3e12 flops
+def test_a_request_of_hours_is_refused_up_front(tmp_path, monkeypatch):
+    # 200 modes, 101 contact nodes: a reduced model of 513, 5000 steps each way ~3e12 flops;
+    # refused before the static stage factors anything
+    def no_factorization(*args, **kwargs):
+        raise AssertionError("factored before the refusal")
+
+    monkeypatch.setattr(analysis.eigen, "solve", no_factorization)
     res = run_cli("stability", "unit-square", "--size", "0.01", "--modes", "200",
                   "--steps", "5000", "-o", tmp_path / "x.h5")
     assert res.exit_code == 2 and "stability.steps" in res.output, res.output
