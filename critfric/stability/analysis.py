@@ -158,6 +158,7 @@ def _stability(prep: Prepared, case: Case, threads: contextlib.ExitStack) -> Sta
     divergence = {"positive": float(static.positive[0]) if len(static.positive) else None,
                   "negative": float(static.negative[0]) if len(static.negative) else None}
     t1 = time.perf_counter()
+    outer = locus.openblas_threads()  # the caller's, for large dense eigenproblems
     threads.enter_context(locus.blas_threads(1))  # after the static stage (as in solve)
     # solved at E = density = 1 and the body's extent ell = 1 (M / ell^2): the thresholds do
     # not depend on them, kappa = omega^2 scales as E / (density ell^2)
@@ -177,7 +178,8 @@ def _stability(prep: Prepared, case: Case, threads: contextlib.ExitStack) -> Sta
     factor = (locus.factor_of(pencil, backend, order, krr_plan)
               if pencil.size > locus.FULL_MAX else None)
     krr_plan = None
-    red = locus.reduce(pencil, modes, backend=backend, order=order, factor=factor)
+    red = locus.reduce(pencil, modes, backend=backend, order=order, factor=factor,
+                       threads=outer)
     if np.any(red.omega2[:modes] <= 0):
         raise SolverError("a free-vibration eigenvalue is not positive: check that the "
                           "Dirichlet edges hold the body")

@@ -25,7 +25,6 @@ import scipy.sparse.linalg as spla
 from threadpoolctl import ThreadpoolController, threadpool_limits
 
 from ..errors import SolverError
-from ..guards import usable_cpus
 from ..solvers.backends import PardisoPlan, factorize
 from ..solvers.pardiso import upper_triangle
 from . import fold
@@ -59,6 +58,12 @@ def blas_threads(count: int):
     return ThreadpoolController().select(internal_api="openblas").limit(limits=count)
 
 
+def openblas_threads() -> int:
+    """The OpenBLAS thread count in effect (the largest of numpy's and SciPy's; 1 if none)."""
+    info = ThreadpoolController().select(internal_api="openblas").info()
+    return max([lib["num_threads"] for lib in info], default=1)
+
+
 @dataclass
 class Reduced:
     """L(f, kappa) projected on a basis V: (A0 - f A1) - kappa (B0 - f B1)."""
@@ -70,12 +75,14 @@ class Reduced:
     B1: np.ndarray
     omega2: np.ndarray  # constrained free-vibration eigenvalues, ascending (exact)
     modes0: np.ndarray  # their modes (kept DOFs), columns
+    threads: int = 1  # OpenBLAS threads for its dense eigenproblems from size 400 on
 
     def blas(self):
         """The BLAS threads for this model's dense eigenproblems: one below size 400 (two on a
-        busy 2-core machine made a 335 x 335 eig 5-30x slower, measured). Entered once around
-        a loop: entering costs ~2 ms, more than one eigenproblem of size 80."""
-        return blas_threads(1 if len(self.A0) < 400 else usable_cpus())
+        busy 2-core machine made a 335 x 335 eig 5-30x slower, measured), ``threads`` from
+        there on. Entered once around a loop: entering costs ~2 ms, more than one
+        eigenproblem of size 80."""
+        return blas_threads(1 if len(self.A0) < 400 else self.threads)
 
     def eigenvalues(self, f: float, vectors: bool = False):
         """Finite kappa at friction f (and left, right vectors if asked), by modulus."""
@@ -160,7 +167,7 @@ def reduced_size(n: int, p: int, modes: int) -> int:
 
 
 def reduce(pencil: SlidingPencil, modes: int, *, backend: str = "scipy", order=None,
-           basis: str = "auto", factor=None) -> Reduced:
+           basis: str = "auto", factor=None, threads: int | None = None) -> Reduced:
     """The reduced model of a pencil, with its ``modes`` (at least) lowest free vibrations.
 
     The basis holds the ``modes`` + ``EXTRA_MODES`` lowest free-vibration modes Phi and:
@@ -169,7 +176,8 @@ def reduce(pencil: SlidingPencil, modes: int, *, backend: str = "scipy", order=N
     (C = K_nr, M_nr) of the ``modes`` + ``CORRECTED_EXTRA`` lowest (4 columns a mode,
     independent of p); "auto": "contact" while 3 p is at most the modal columns. ``factor``:
     a factorization of K_rr to use (the one that also serves the sharpening and
-    Newton's bordered solves), else one is made.
+    Newton's bordered solves), else one is made. ``threads``: the model's ``threads``
+    (default: the OpenBLAS thread count in effect).
 
     Dense products run on one BLAS thread: after PARDISO's threads, two threads on a busy
     2-core machine made them up to 30x slower (ARPACK's own work among them)."""
@@ -178,10 +186,13 @@ def reduce(pencil: SlidingPencil, modes: int, *, backend: str = "scipy", order=N
     if n <= FULL_MAX:
         A0, A1, B0, B1 = (b.b.toarray() for b in blocks)
         w, vecs = la.eigh(A0, B0)
-        return Reduced(None, A0, A1, B0, B1, w, vecs)
-    factor = factor or factor_of(pencil, backend, order)
-    with threadpool_limits(1, user_api="blas"):
-        return _reduce(pencil, modes, factor, basis, blocks)
+        red = Reduced(None, A0, A1, B0, B1, w, vecs)
+    else:
+        factor = factor or factor_of(pencil, backend, order)
+        with threadpool_limits(1, user_api="blas"):
+            red = _reduce(pencil, modes, factor, basis, blocks)
+    red.threads = openblas_threads() if threads is None else threads
+    return red
 
 
 def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str, blocks) -> Reduced:

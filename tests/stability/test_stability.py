@@ -1,4 +1,4 @@
-"""Flutter and divergence of steady sliding (issue 16): a closed form, the friction-0 and
+"""Flutter and divergence of steady sliding: a closed form, the friction-0 and
 static limits, an independent dense check of the flutter onset, symmetry, files and CLI."""
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ import pytest
 import scipy.linalg as la
 import scipy.sparse as sp
 from helpers import run_cli
+from threadpoolctl import threadpool_limits
 
 from critfric.case.schema import load_case
 from critfric.fem.assembly import assemble_mass, lame
@@ -291,3 +292,21 @@ def test_sharpened_guess_needs_one_newton_step(square):
     assert sharp.friction == pytest.approx(result.flutter["positive"], rel=1e-9)
     found = fold.find_fold(pencil, sharp.friction, sharp.kappa, sharp.right, sharp.left)
     assert found.steps == 1 and found.friction == pytest.approx(sharp.friction, rel=1e-9)
+
+
+def test_openblas_threads_follow_the_model_size_and_are_given_back():
+    """Dense eigenproblems below size 400 run on one OpenBLAS thread, larger ones on the
+    count the caller had (a sweep worker's one thread is not raised); a run gives the
+    caller's count back."""
+    eye = lambda n: np.eye(n)
+    with threadpool_limits(limits=1):  # the most a test machine is sure to have
+        for n, threads, inside in ((10, 2, 1), (400, 1, 1)):
+            red = locus.Reduced(None, eye(n), eye(n), eye(n), eye(n), np.ones(n), eye(n),
+                                threads=threads)
+            with red.blas():
+                assert locus.openblas_threads() == inside
+        stability_case("four-triangles")
+        assert locus.openblas_threads() == 1
+    before = locus.openblas_threads()
+    stability_case("four-triangles")
+    assert locus.openblas_threads() == before
