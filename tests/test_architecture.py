@@ -1,4 +1,4 @@
-"""The package's shape (issue 11): subpackages that are the pipeline, imports that only run
+"""The package's shape: subpackages that are the pipeline, imports that only run
 downwards (counting imports inside functions), no loops, small modules."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Hostile inputs (issue 12): case, mesh and script files from someone else. Each one gives
+"""Hostile inputs: case, mesh and script files from someone else. Each one gives
 exit code 2 (1 for a numerical failure) with one `critfric: error:` line, no traceback, no
 file created or changed, and no hang. The catalogue of merely wrong inputs is test_badinput."""
 

@@ -1,4 +1,4 @@
-"""Singular points of the eigenproblem and meshes graded at every one of them (issue 13)."""
+"""Singular points of the eigenproblem and meshes graded at every one of them."""
 
 import math
 
