@@ -181,21 +181,20 @@ def reduce(pencil: SlidingPencil, modes: int, *, backend: str = "scipy", order=N
 
     Dense products run on one BLAS thread: after PARDISO's threads, two threads on a busy
     2-core machine made them up to 30x slower (ARPACK's own work among them)."""
-    n = pencil.size
-    blocks = _blocks(pencil)
-    if n <= FULL_MAX:
-        A0, A1, B0, B1 = (b.b.toarray() for b in blocks)
+    if pencil.size <= FULL_MAX:
+        A0, A1, B0, B1 = (b.toarray() for b in (pencil.Krr, pencil.GKnr, pencil.Mrr,
+                                                 pencil.GMnr))
         w, vecs = la.eigh(A0, B0)
         red = Reduced(None, A0, A1, B0, B1, w, vecs)
     else:
         factor = factor or factor_of(pencil, backend, order)
         with threadpool_limits(1, user_api="blas"):
-            red = _reduce(pencil, modes, factor, basis, blocks)
+            red = _reduce(pencil, modes, factor, basis)
     red.threads = openblas_threads() if threads is None else threads
     return red
 
 
-def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str, blocks) -> Reduced:
+def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str) -> Reduced:
     n = pencil.size
     k = min(modes + EXTRA_MODES, n - 2)
     op = spla.LinearOperator((n, n), matvec=factor.solve, dtype=np.float64)
@@ -214,13 +213,11 @@ def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str, blocks) -> Re
         basis = "contact" if 3 * p0 <= 4 * corrected else "modal"
     if basis == "contact":  # right null space at kappa = 0 (tangential loads), left (reactions)
         loads = [pencil.G.toarray(), pencil.Knr.T.toarray(), pencil.Mnr.T.toarray()]
-    else:  # how each mode's contact forces load the body, right and left
-        G, GT = pencil.G, pencil.G.T.tocsr()
+    else:  # how each mode's contact forces load the body, right and left: G C Phi, C^T G^T Phi
         low = vecs[:, :corrected]
-        loads = [G @ (pencil.Knr @ low), G @ (pencil.Mnr @ low),
-                 pencil.Knr.T @ (GT @ low), pencil.Mnr.T @ (GT @ low)]
+        loads = [pencil.GKnr @ low, pencil.GMnr @ low, pencil.GKnr.T @ low, pencil.GMnr.T @ low]
     V = orthonormal(np.column_stack([vecs, factor.solve(np.column_stack(loads))]))
-    A0, A1, B0, B1 = (b.form(V, V) for b in blocks)
+    A0, A1, B0, B1 = (b.form(V, V) for b in _blocks(pencil))
     return Reduced(V, A0, A1, B0, B1, w, vecs)
 
 
@@ -364,10 +361,9 @@ def _sharpen(red: Reduced, pencil: SlidingPencil, factor, guess: Guess) -> Guess
         if (rnd and still) or rnd == SHARPEN_ROUNDS:
             break
         v, w = lift(np.column_stack([y, z])).T
-        Bv = pencil.Mrr @ v - f * (pencil.GMnr @ v)
-        BTw = pencil.Mrr @ w - f * (pencil.GMnr.T @ w)
-        Lv = pencil.Krr @ v - f * (pencil.GKnr @ v) - kappa * Bv
-        LTw = pencil.Krr @ w - f * (pencil.GKnr.T @ w) - kappa * BTw
+        Bv, BTw = pencil.apply_B(f, v), pencil.apply_B(f, w, transpose=True)
+        Lv = pencil.apply_A(f, v) - kappa * Bv
+        LTw = pencil.apply_A(f, w, transpose=True) - kappa * BTw
         new = _outside(V, T[:, :t], factor.solve(np.column_stack([Lv, LTw, Bv, BTw])))
         k = new.shape[1]
         if k == 0:

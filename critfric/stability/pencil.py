@@ -76,9 +76,17 @@ class SlidingPencil:
         """d2L/(dkappa df)."""
         return self.GMnr
 
+    def apply_A(self, f: float, v: np.ndarray, transpose: bool = False) -> np.ndarray:
+        """A(f) v (A(f)^T v) from the blocks, no sum matrix formed (K_rr is symmetric)."""
+        return self.Krr @ v - f * ((self.GKnr.T if transpose else self.GKnr) @ v)
+
+    def apply_B(self, f: float, v: np.ndarray, transpose: bool = False) -> np.ndarray:
+        """B(f) v (B(f)^T v) from the blocks (M_rr is symmetric)."""
+        return self.Mrr @ v - f * ((self.GMnr.T if transpose else self.GMnr) @ v)
+
     def apply_L(self, f: float, kappa: float, v: np.ndarray) -> np.ndarray:
-        """L(f, kappa) v from the blocks (no sum matrix formed)."""
-        return self.Krr @ v - f * (self.GKnr @ v) - kappa * (self.Mrr @ v - f * (self.GMnr @ v))
+        """L(f, kappa) v from the blocks."""
+        return self.apply_A(f, v) - kappa * self.apply_B(f, v)
 
     def free_vector(self, v: np.ndarray) -> np.ndarray:
         """Kept-DOF vector(s) -> free-DOF vector(s) (zeros on the eliminated DOFs)."""
