@@ -292,11 +292,15 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
         plan.append(eigen.plan_dense(ptr, col, layout.contact_dofs, method=s["method"],
                                      shift=s["shift"], backend=s["backend"], dim=mesh.dim))
 
-    K_lam, K_G = assemble_elasticity(mesh, on_pattern=start if _plan else None)
-    t3 = time.perf_counter()
-    make = contact_system3d if mesh.dim == 3 else contact_system
-    system = make(mesh, K_lam, K_G, contact=case.boundary["contact"],
-                  dirichlet=case.boundary["dirichlet"], source=case.source, layout=layout)
+    try:
+        K_lam, K_G = assemble_elasticity(mesh, on_pattern=start if _plan else None)
+        t3 = time.perf_counter()
+        make = contact_system3d if mesh.dim == 3 else contact_system
+        system = make(mesh, K_lam, K_G, contact=case.boundary["contact"],
+                      dirichlet=case.boundary["dirichlet"], source=case.source, layout=layout)
+    except BaseException:
+        _close(plan[0] if plan else None)
+        raise
     t4 = time.perf_counter()
     return Prepared(mesh, system, {"mesh": t1 - t0, "assembly": t3 - t2,
                                    "contact": t4 - t3 + t2 - t1},
@@ -361,6 +365,20 @@ def _mesh_inputs(case: Case) -> dict:
 def solve_prepared(prep: Prepared, case: Case, *, _release: bool = False) -> Result:
     """Solve the eigenproblem of a prepared case at the case's Poisson ratio (and [solve],
     [contact]); its geometry, mesh and boundary must be those ``prep`` was made from."""
+    plan, prep.plan = prep.plan, None  # prepare's analysis of K's pattern, if started
+    try:
+        return _solve_prepared(prep, case, plan, _release)
+    finally:
+        _close(plan)
+
+
+def _close(plan) -> None:
+    """Wait for a background analysis the solve did not use (an error came first)."""
+    if plan is not None:
+        plan.close()
+
+
+def _solve_prepared(prep: Prepared, case: Case, plan, _release: bool) -> Result:
     prep.check_case(case)
     check_dimension(case, prep.mesh.dim)
     if prep.mesh.dim == 3 and prep.slip != _slip_inputs(case):
@@ -371,7 +389,6 @@ def solve_prepared(prep: Prepared, case: Case, *, _release: bool = False) -> Res
     s = case.solve
     system = prep.system
     state = contact_state(case, system)  # None: all slipping ([contact])
-    plan, prep.plan = prep.plan, None
     K = system.stiffness(lam, G, keep_zeros=plan is not None)  # the planned pattern
     if _release:  # solve_case's own prepared case: the parts are not needed again, and
         # at 1 M DOFs they are 0.4 GB beside the factorization (the peak)

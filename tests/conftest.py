@@ -25,3 +25,14 @@ def coarse_square():
 
     case = loads_case(square_case(size=0.2))
     return case, prepare(case)
+
+
+@pytest.fixture(autouse=True)
+def no_analysis_outlives_its_test():
+    """No background factorization analysis is still running once a test is over: the call
+    that started one waits for it on every way out (an error included)."""
+    import threading
+
+    yield
+    left = [t.name for t in threading.enumerate() if t.name.startswith("critfric-")]
+    assert not left, f"background threads still running: {left}"

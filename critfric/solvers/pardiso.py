@@ -231,7 +231,8 @@ class PardisoPlan:
     ``indices``), run in a background thread while the caller computes the values: METIS is
     sequential (~half of a factorization at 1 M rows), so the other cores work meanwhile.
     :meth:`schur` (with Schur rows) or :meth:`factor` (without) finishes it on a matrix of
-    that pattern, once."""
+    that pattern, once; :meth:`close` waits for an analysis that will not be used (its
+    owner's ``finally``: no thread outlives the call that started it)."""
 
     def __init__(self, indptr: np.ndarray, indices: np.ndarray, index: np.ndarray | None = None):
         self._factor = PardisoFactor.__new__(PardisoFactor)
@@ -258,16 +259,24 @@ class PardisoPlan:
         :meth:`schur`."""
         return self._finish(A, None)
 
+    def close(self) -> None:
+        """Wait for the analysis and drop it (released with its factor); idempotent."""
+        self._factor = None
+        self._thread.join()
+
     def _finish(self, A: sp.spmatrix, index: np.ndarray | None) -> PardisoFactor | None:
         factor, self._factor = self._factor, None
-        if factor is None or (index is None) != (self._index is None):
-            return None
-        U = upper_triangle(A)
-        if not (np.array_equal(U.indptr, factor._ia) and np.array_equal(U.indices, factor._ja)
-                and (index is None or np.array_equal(index, self._index))):
-            return None
-        _check_diagonal(A)
-        self._thread.join()
+        try:  # the checks run beside the analysis
+            if factor is None or (index is None) != (self._index is None):
+                return None
+            U = upper_triangle(A)
+            if not (np.array_equal(U.indptr, factor._ia)
+                    and np.array_equal(U.indices, factor._ja)
+                    and (index is None or np.array_equal(index, self._index))):
+                return None
+            _check_diagonal(A)
+        finally:
+            self._thread.join()  # used or not: no analysis outlives its plan's use
         if self._error is not None:
             raise self._error
         factor._numeric(U.data)

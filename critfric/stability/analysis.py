@@ -132,13 +132,19 @@ class StabilityResult:
 
 def stability_prepared(prep: Prepared, case: Case) -> StabilityResult:
     """Thresholds of a prepared case at its Poisson ratio, density and [stability] keys."""
-    prep.check_case(case)
-    check_dimension(case, prep.mesh.dim, "critfric stability")
+    # ``threads``: what the stages leave running (OpenBLAS limits, background analyses),
+    # put back and waited for on the way out, whatever the way
     with contextlib.ExitStack() as threads:
-        return _stability(prep, case, threads)
+        plan, prep.plan = prep.plan, None  # the static stage's analysis, if started in prepare
+        if plan is not None:  # waited for at the end, if unused (an error came first)
+            threads.callback(plan.close)
+        prep.check_case(case)
+        check_dimension(case, prep.mesh.dim, "critfric stability")
+        return _stability(prep, case, plan, threads)
 
 
-def _stability(prep: Prepared, case: Case, threads: contextlib.ExitStack) -> StabilityResult:
+def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
+               ) -> StabilityResult:
     t0 = time.perf_counter()
     E, nu, rho = case.material["E"], case.material["nu"], case.material["density"]
     s, st = case.solve, case.stability
@@ -150,7 +156,6 @@ def _stability(prep: Prepared, case: Case, threads: contextlib.ExitStack) -> Sta
     modes = min(st["modes"], len(kept))
     _check_work(st["steps"], locus.reduced_size(len(kept), len(slip), modes), modes,
                 case.source)  # before any factorization
-    plan, prep.plan = prep.plan, None  # the static stage's analysis, if started in prepare
     static = eigen.solve(system.stiffness(*lame(1.0, nu), keep_zeros=plan is not None),
                          system, state, method=s["method"], count=1, tol=s["tol"],
                          maxiter=s["maxiter"], real_tol=s["real_tol"], backend=backend,
@@ -166,6 +171,8 @@ def _stability(prep: Prepared, case: Case, threads: contextlib.ExitStack) -> Sta
     K = system.stiffness(*lame(1.0, nu))
     Krr = K[kept][:, kept].tocsr()
     krr_plan = locus.plan_of(Krr, backend)  # K_rr's analysis beside the mass assembly
+    if krr_plan is not None:
+        threads.callback(krr_plan.close)
     M = system.restrict(assemble_mass(prep.mesh, 1.0)) / ell**2
     pencil = sliding_pencil(system, K, M, state, Krr=Krr)
     del K, Krr, M  # the pencil holds its blocks

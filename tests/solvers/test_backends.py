@@ -522,3 +522,35 @@ def test_pardiso_plan_without_schur_rows_gives_the_plain_factorization():
     index = np.concatenate([system.cn, system.ct])
     assert linsolve.PardisoPlan(U.indptr, U.indices).schur(K, index) is None
     assert linsolve.PardisoPlan(U.indptr, U.indices, index).factor(K) is None
+
+
+@pytest.mark.skipif("pardiso" not in AVAILABLE,
+                    reason="backend 'pardiso' not installed (pip install critfric[fast])")
+@pytest.mark.parametrize("command", ["solve", "stability"])
+def test_an_analysis_started_for_a_run_that_fails_is_waited_for(monkeypatch, command):
+    """solve_case and stability_case start the static stage's analysis while they assemble;
+    a run that fails before using it returns only once that analysis has ended (a thread
+    left running races the caller's next PARDISO or OpenMP call)."""
+    import threading
+
+    from critfric import solve as solve_module
+    from critfric.stability import analysis
+
+    started = []
+    original = linsolve.PardisoPlan.__init__
+
+    def record(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+        started.append(self._thread)
+
+    def fail(*args, **kwargs):
+        raise SolverError("made to fail")
+
+    monkeypatch.setattr(linsolve.PardisoPlan, "__init__", record)
+    monkeypatch.setattr(solve_module.eigen, "solve", fail)
+    run = critfric.solve_case if command == "solve" else analysis.stability_case
+    with pytest.raises(SolverError, match="made to fail"):
+        run(loads_case(square_case(element="P2", size=0.02)))
+    assert len(started) == 1 and not started[0].is_alive()
+    assert not [t for t in threading.enumerate() if t.name.startswith("critfric-")]
+    assert analysis.eigen is solve_module.eigen  # the one patched
