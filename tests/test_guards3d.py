@@ -22,7 +22,8 @@ MEASURED = Path(__file__).resolve().parent.parent / "benchmarks" / "box3d_memory
 
 
 def test_the_model_covers_every_measured_peak_closely():
-    rows = list(csv.DictReader(MEASURED.open()))
+    with MEASURED.open() as f:
+        rows = list(csv.DictReader(f))
     assert {(r["backend"], r["element"]) for r in rows} >= {
         (b, e) for b in ("pardiso", "scipy") for e in ("P1", "P2", "Q1")}
     for r in rows:

@@ -123,12 +123,23 @@ def test_limits_and_bad_ranges():
 
 
 def test_enumeration_of_an_unloaded_case_raises_no_warning():
-    """Zero load: every scale is zero; the checks must not divide 0 by 0."""
+    """Zero load: every scale is zero; the checks must not divide 0 by 0. Floating-point
+    errors raise (numpy's state is this thread's) and every warning of this thread is
+    recorded: the process-wide filter "error" would also reach the worker's other threads."""
+    import threading
     import warnings
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
+    this, shown = threading.current_thread(), []
+
+    def record(message, category, *args, **kwargs):
+        if threading.current_thread() is this:
+            shown.append(f"{category.__name__}: {message}")
+
+    with np.errstate(divide="raise", over="raise", invalid="raise"), warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.showwarning = record
         for name in ("four_triangles", "one_triangle"):
             out = enumerate_solutions(static_problem(critfric.load_case(CASES / f"{name}.toml")),
                                       [0.5, 1.8, 2.5])
             assert len(out) == 3
+    assert shown == []
