@@ -85,13 +85,14 @@ class Reduced:
         return blas_threads(1 if len(self.A0) < 400 else self.threads)
 
     def eigenvalues(self, f: float, vectors: bool = False):
-        """Finite kappa at friction f (and left, right vectors if asked), by modulus."""
+        """Finite kappa at friction f (and left, right vectors if asked), by modulus; each
+        complex pair exactly conjugate, the one with Im > 0 first."""
         a, b = self.A0 - f * self.A1, self.B0 - f * self.B1
         out = la.eig(a, b, homogeneous_eigvals=True, left=vectors, right=vectors)
         ab = out[0] if vectors else out
         alpha, beta = ab[0], ab[1]
         finite = np.abs(beta) > INFINITE * np.abs(alpha)
-        kappa = alpha[finite] / beta[finite]
+        kappa = _conjugate_pairs(alpha, beta, finite)[finite]
         order = np.argsort(np.abs(kappa), kind="stable")
         if not vectors:
             return kappa[order]
@@ -100,6 +101,22 @@ class Reduced:
 
     def lift(self, y: np.ndarray) -> np.ndarray:
         return y if self.V is None else self.V @ y
+
+
+def _conjugate_pairs(alpha: np.ndarray, beta: np.ndarray, finite: np.ndarray) -> np.ndarray:
+    """alpha / beta with each complex pair of a real pencil made exactly conjugate. QZ gives
+    a pair as consecutive (alpha, beta), Im alpha > 0 first, with different scalings: the
+    quotients are conjugate only to rounding, so their moduli and their distances to a real
+    prediction differ by it, and which branch took which half of a pair changed from run to
+    run (PARDISO's parallel solves do not round the same way twice). The mean of the two
+    halves, exactly conjugated, leaves that choice to :func:`_match`'s rule alone."""
+    kappa = np.full(len(alpha), np.nan + 0j)
+    kappa[finite] = alpha[finite] / beta[finite]
+    first = np.flatnonzero(alpha.imag[:-1] > 0)
+    first = first[(alpha.imag[first + 1] < 0) & finite[first] & finite[first + 1]]
+    mean = 0.5 * (kappa[first] + np.conj(kappa[first + 1]))
+    kappa[first], kappa[first + 1] = mean, np.conj(mean)
+    return kappa
 
 
 def plan_of(Krr: sp.csr_matrix, backend: str) -> PardisoPlan | None:
@@ -242,7 +259,9 @@ def follow(red: Reduced, modes: int, grid: np.ndarray) -> Branches:
 
 
 def _match(guess: np.ndarray, ev: np.ndarray, previous: np.ndarray) -> np.ndarray:
-    """Each branch takes the nearest eigenvalue not taken, closest pairs first."""
+    """Each branch takes the nearest eigenvalue not taken, closest pairs first; a tie (a
+    real prediction, the two halves of a conjugate pair) goes to the earlier eigenvalue of
+    ``ev`` (Im > 0 first: the branch nearer a pair where it is born takes Im > 0)."""
     if len(ev) == 0:
         return np.full(len(guess), np.nan + 0j)
     scale = np.maximum(np.abs(previous), 1e-300)[:, None]

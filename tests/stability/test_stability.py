@@ -294,6 +294,32 @@ def test_sharpened_guess_needs_one_newton_step(square):
     assert found.steps == 1 and found.friction == pytest.approx(sharp.friction, rel=1e-9)
 
 
+def test_root_locus_labels_do_not_depend_on_rounding(square):
+    """QZ gives a complex pair as two quotients that are conjugate only to rounding; made
+    exactly conjugate (Im > 0 first), which branch takes which half is the matching rule's
+    alone: the same labels from the model perturbed at the rounding level (PARDISO's
+    parallel solves round differently from run to run), the same values to 1e-9."""
+    case, _ = square
+    prep = prepare(case)
+    K = prep.system.stiffness(*lame(1.0, 0.3))
+    M = prep.system.restrict(assemble_mass(prep.mesh))
+    pencil = sliding_pencil(prep.system, K, M, ContactState.all_slipping(prep.system.n_contact))
+    red = locus.reduce(pencil, 6)
+    kappa, _, _ = red.eigenvalues(0.5, vectors=True)
+    pairs = np.flatnonzero(kappa.imag > 0)
+    assert len(pairs) and np.array_equal(kappa[pairs + 1], np.conj(kappa[pairs]))
+    grid = np.linspace(0, 2.0, 201)
+    reference = locus.follow(red, 6, grid).kappa
+    assert locus.is_complex(reference).any()
+    rng = np.random.default_rng(3)
+    for _ in range(6):
+        noisy = locus.Reduced(red.V, *(m * (1 + 4e-16 * rng.standard_normal(m.shape))
+                                       for m in (red.A0, red.A1, red.B0, red.B1)),
+                              red.omega2, red.modes0)
+        kappa = locus.follow(noisy, 6, grid).kappa
+        np.testing.assert_allclose(kappa, reference, rtol=1e-9, atol=1e-9 * abs(reference).max())
+
+
 def test_openblas_threads_follow_the_model_size_and_are_given_back():
     """Dense eigenproblems below size 400 run on one OpenBLAS thread, larger ones on the
     count the caller had (a sweep worker's one thread is not raised); a run gives the
