@@ -130,8 +130,7 @@ def plan_of(Krr: sp.csr_matrix, backend: str) -> PardisoPlan | None:
 
 def factor_of(pencil: SlidingPencil, backend: str, order, plan: PardisoPlan | None = None):
     """A factorization of K_rr (``plan``: :func:`plan_of` K_rr, if started)."""
-    return factorize(pencil.Krr if plan is not None else pencil.Krr.tocsc(), symmetric=True,
-                     backend=backend, order=order, plan=plan)
+    return factorize(pencil.Krr, symmetric=True, backend=backend, order=order, plan=plan)
 
 
 class Block:
@@ -167,10 +166,15 @@ class Block:
                 np.concatenate([W[self.cols].T @ bTN for W in Ws]), N[self.rows].T @ bN)
 
 
+def _matrices(pencil: SlidingPencil) -> tuple:
+    """The sparse blocks of the pencil, L = (A0 - f A1) - kappa (B0 - f B1): A0, A1, B0, B1."""
+    return pencil.Krr, pencil.GKnr, pencil.Mrr, pencil.GMnr
+
+
 def _blocks(pencil: SlidingPencil) -> list[Block]:
-    """The sparse blocks of the pencil, L = (A0 - f A1) - kappa (B0 - f B1)."""
-    return [Block(pencil.Krr, True), Block(pencil.GKnr, False), Block(pencil.Mrr, True),
-            Block(pencil.GMnr, False)]
+    """:func:`_matrices` with their projections (A0 and B0 symmetric)."""
+    return [Block(b, symmetric) for b, symmetric in zip(_matrices(pencil),
+                                                         (True, False, True, False))]
 
 
 def reduced_size(n: int, p: int, modes: int) -> int:
@@ -199,8 +203,7 @@ def reduce(pencil: SlidingPencil, modes: int, *, backend: str = "scipy", order=N
     Dense products run on one BLAS thread: after PARDISO's threads, two threads on a busy
     2-core machine made them up to 30x slower (ARPACK's own work among them)."""
     if pencil.size <= FULL_MAX:
-        A0, A1, B0, B1 = (b.toarray() for b in (pencil.Krr, pencil.GKnr, pencil.Mrr,
-                                                 pencil.GMnr))
+        A0, A1, B0, B1 = (b.toarray() for b in _matrices(pencil))
         w, vecs = la.eigh(A0, B0)
         red = Reduced(None, A0, A1, B0, B1, w, vecs)
     else:

@@ -68,6 +68,16 @@ def square():
     return case, stability_case(case)
 
 
+@pytest.fixture(scope="module")
+def square_pencil(square):
+    """The all-slipping pencil of ``square``'s mesh (nu = 0.3)."""
+    case, _ = square
+    prep = prepare(case)
+    K = prep.system.stiffness(*lame(1.0, 0.3))
+    M = prep.system.restrict(assemble_mass(prep.mesh))
+    return sliding_pencil(prep.system, K, M, ContactState.all_slipping(prep.system.n_contact))
+
+
 def _dense_pencil(case):
     """An independent assembly of the sliding pencil with multipliers, by dense blocks:
     [[K - kappa M, -(B_n + f B_t)], [-B_n^T, 0]] over the free DOFs (xy basis)."""
@@ -243,13 +253,10 @@ def test_sweep_of_flutter_thresholds(tmp_path):
 
 
 @pytest.mark.parametrize("basis", ["contact", "modal"])
-def test_both_reduced_bases_lead_to_the_same_onset(square, basis):
+def test_both_reduced_bases_lead_to_the_same_onset(square, square_pencil, basis):
     """The reduced model only locates: either basis, Newton ends on the same coalescence."""
-    case, result = square
-    prep = prepare(case)
-    K = prep.system.stiffness(*lame(1.0, 0.3))
-    M = prep.system.restrict(assemble_mass(prep.mesh))
-    pencil = sliding_pencil(prep.system, K, M, ContactState.all_slipping(prep.system.n_contact))
+    _, result = square
+    pencil = square_pencil
     red = locus.reduce(pencil, 6, basis=basis)
     assert red.V.shape[1] < pencil.size
     for d, end in (("positive", 2.0), ("negative", -2.0)):
@@ -276,15 +283,12 @@ def test_flutter_threshold_converges_with_the_mesh():
     assert limit == pytest.approx(0.2550, abs=5e-4)
 
 
-def test_sharpened_guess_needs_one_newton_step(square):
+def test_sharpened_guess_needs_one_newton_step(square, square_pencil):
     """The reduced model, enlarged at its coalescence until it stops moving, lands within
     Newton's tolerance of the full pencil's onset: Newton confirms it in one step."""
-    case, result = square
+    _, result = square
+    pencil = square_pencil
     assert result.newton_steps == {"positive": 1, "negative": 1}
-    prep = prepare(case)
-    K = prep.system.stiffness(*lame(1.0, 0.3))
-    M = prep.system.restrict(assemble_mass(prep.mesh))
-    pencil = sliding_pencil(prep.system, K, M, ContactState.all_slipping(prep.system.n_contact))
     red = locus.reduce(pencil, 6)
     guess = locus.locate_flutter(red, locus.follow(red, 6, np.linspace(0, 2.0, 201)))
     sharp = locus.sharpen(red, pencil, locus.factor_of(pencil, "scipy", None), guess)
@@ -294,16 +298,12 @@ def test_sharpened_guess_needs_one_newton_step(square):
     assert found.steps == 1 and found.friction == pytest.approx(sharp.friction, rel=1e-9)
 
 
-def test_root_locus_labels_do_not_depend_on_rounding(square):
+def test_root_locus_labels_do_not_depend_on_rounding(square_pencil):
     """QZ gives a complex pair as two quotients that are conjugate only to rounding; made
     exactly conjugate (Im > 0 first), which branch takes which half is the matching rule's
     alone: the same labels from the model perturbed at the rounding level (PARDISO's
     parallel solves round differently from run to run), the same values to 1e-9."""
-    case, _ = square
-    prep = prepare(case)
-    K = prep.system.stiffness(*lame(1.0, 0.3))
-    M = prep.system.restrict(assemble_mass(prep.mesh))
-    pencil = sliding_pencil(prep.system, K, M, ContactState.all_slipping(prep.system.n_contact))
+    pencil = square_pencil
     red = locus.reduce(pencil, 6)
     kappa, _, _ = red.eigenvalues(0.5, vectors=True)
     pairs = np.flatnonzero(kappa.imag > 0)
