@@ -29,7 +29,6 @@ parent. The directory is removed afterwards.
 
 from __future__ import annotations
 
-import functools
 import json
 import os
 import subprocess
@@ -70,14 +69,16 @@ def run_in_child(path: Path, data: bytes, job: dict, *, entry: str,
         (work / "job.json").write_text(json.dumps({**job, "input": name, "shown": path.name}))
         env = {"PATH": os.defpath, "HOME": tmp, "TMPDIR": tmp, "OMP_NUM_THREADS": "1",
                "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "LC_ALL": "C"}
-        code = ("import sys; sys.path.insert(0, sys.argv[1]); "
-                "from critfric.meshing.sandbox import child_main; child_main(sys.argv[2])")
+        code = ("import sys; sys.path.insert(0, sys.argv[1]); from critfric.meshing.sandbox "
+                "import child_main; child_main(sys.argv[2], *map(int, sys.argv[3:5]))")
         package_root = str(Path(__file__).resolve().parents[2])
+        # its own session: a Ctrl-C reaches critfric, which ends it (no preexec_fn: Python
+        # code between fork and exec can deadlock on a lock another thread held)
         proc = subprocess.Popen(
-            [sys.executable, "-I", "-c", code, package_root, entry], cwd=tmp, env=env,
-            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-            preexec_fn=functools.partial(_limits, _space(job, data))  # (POSIX systems)
-            if os.name == "posix" else None)
+            [sys.executable, "-I", "-c", code, package_root, entry, str(CPU_SECONDS),
+             str(_space(job, data))],
+            cwd=tmp, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE, start_new_session=True)
         try:
             stderr = _watch(proc, work, job, path)
         finally:
@@ -219,15 +220,19 @@ def _space(job: dict, data: bytes) -> int:
     return max(int(available_memory()), MIN_ADDRESS_SPACE)
 
 
-def _limits(space: int) -> None:  # runs in the child, before Python starts
-    import resource
-
-    for limit, value in ((resource.RLIMIT_CPU, CPU_SECONDS), (resource.RLIMIT_AS, space),
+def _limits(cpu: int, space: int) -> None:
+    """The child's limits (``cpu`` seconds, ``space`` bytes of address space, as the parent
+    decided them), set by the child itself before it reads anything of the job (POSIX;
+    elsewhere only the parent's wall-clock and memory watch apply)."""
+    try:
+        import resource
+    except ImportError:
+        return
+    for limit, value in ((resource.RLIMIT_CPU, cpu), (resource.RLIMIT_AS, space),
                          (resource.RLIMIT_FSIZE, OUTPUT_BYTES), (resource.RLIMIT_CORE, 0)):
         hard = resource.getrlimit(limit)[1]
         value = value if hard == resource.RLIM_INFINITY else min(value, hard)
         resource.setrlimit(limit, (value, hard))
-    os.setsid()  # its own process group: a Ctrl-C reaches critfric, which ends it
 
 
 def _failure(proc: subprocess.CompletedProcess) -> str:
@@ -280,10 +285,12 @@ def _mesh_from(result: Path, path: Path) -> Mesh:
 
 
 # ------------------------------------------------------------------------------- the child
-def child_main(entry: str) -> None:
-    """The child process (cwd: the private directory): ``entry`` makes the Mesh."""
+def child_main(entry: str, cpu: int, space: int) -> None:
+    """The child process (cwd: the private directory): within its limits (:func:`_limits`),
+    ``entry`` makes the Mesh."""
     import importlib
 
+    _limits(cpu, space)
     work = Path.cwd()
     try:
         job = json.loads((work / "job.json").read_text())
