@@ -19,7 +19,7 @@ sys.path.insert(0, str(HERE.parent))  # the checkout's critfric, installed or no
 
 os.environ.setdefault("MPLBACKEND", "Agg")  # the gallery's figures, without a display
 
-from critfric._version import __version__  # noqa: E402
+from critfric._version import __version__
 
 project = "critfric"
 author = "the critfric authors"
@@ -58,7 +58,7 @@ def _constants() -> dict[str, str]:
     from critfric.solvers import backends, eigen
     from critfric.sweep import extrapolate as x
 
-    n = lambda v: f"{v:,}".replace(",", " ") if v >= 10_000 else str(v)  # noqa: E731
+    n = lambda v: f"{v:,}".replace(",", " ") if v >= 10_000 else str(v)
     return {
         "schur_max_contact": n(eigen.SCHUR_MAX_CONTACT),
         "schur_max_rows": n(2 * eigen.SCHUR_MAX_CONTACT),

@@ -17,10 +17,10 @@ import pytest
 from helpers import REPO
 
 sys.path.insert(0, str(REPO / "docs" / "_ext"))
-import critfric_refs as refs  # noqa: E402
+import critfric_refs as refs
 
-from critfric.case import checks  # noqa: E402
-from critfric.case.schema import OVERRIDES, SCHEMA, SHAPE_KEYS, TOP_LEVEL  # noqa: E402
+from critfric.case import checks
+from critfric.case.schema import OVERRIDES, SCHEMA, SHAPE_KEYS, TOP_LEVEL
 
 
 def _sections(markdown: str) -> dict[str, str]:

@@ -392,7 +392,7 @@ def verify(
         raise typer.Exit(1)
 
 
-from . import pathcmd  # noqa: E402, F401 -- registers `critfric path` (in its own module)
+from . import pathcmd  # noqa: F401 -- registers `critfric path` (in its own module)
 
 
 def version_callback(value: bool) -> None:

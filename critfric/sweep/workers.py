@@ -198,7 +198,7 @@ def run_local(jobs: int, fn: Callable, spec: dict, points: list) -> Iterator[tup
                         queue.appendleft(list(w.pending))
                     w.stop(kill=True)
                     _Worker(ctx, fn, spec, pool, at=i)
-                    _assign(pool[i], queue)
+                    _assign(pool[i], queue)  # noqa: PLR1736 -- pool[i] is the new worker
         clean = True
     finally:
         for w in pool:

@@ -417,7 +417,7 @@ def test_an_interrupt_python_wraps_at_start_up_is_still_130(monkeypatch):
     typer` -> `import platform` does) into a RuntimeError: still one line and exit 130."""
     import types
 
-    import critfric.cli as cli
+    from critfric import cli
 
     def wrapped(name):
         try:

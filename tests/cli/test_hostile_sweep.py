@@ -131,7 +131,7 @@ def test_a_signal_to_the_group_of_a_parallel_sweep_stops_it_and_keeps_its_points
     assert "Traceback" not in stderr and stderr.count(f"critfric: {word}:") == 1, stderr
     assert "every finished point is kept" in stderr
     # every point said finished is in the file (one more at most: written, not yet said)
-    said = len(re.findall(r"^critfric: sweep: point \d+/", stderr, re.M))
+    said = len(re.findall(r"^critfric: sweep: point \d+/", stderr, re.MULTILINE))
     kept = read_sweep(tmp_path / "s.h5")["rows"]
     assert 2 <= len(kept) < POINTS and said <= len(kept) <= said + 1, stderr
     assert all(r["status"] == "ok" and r["positive"] for r in kept)
@@ -154,13 +154,12 @@ def test_ctrl_c_while_the_workers_start_is_130_without_a_traceback(tmp_path):
 def test_sigterm_under_the_guard_is_held_through_a_write_and_raised_after():
     saved, done = signal.getsignal(signal.SIGTERM), []
     with interrupt_guard() as guard:
-        with pytest.raises(Terminated):
-            with guard.deferred():
-                with guard.deferred():  # nested: only the outermost raises
-                    os.kill(os.getpid(), signal.SIGTERM)
-                    sum(range(10_000))  # the handler runs here, and holds it
-                done.append("inner")
-                done.append("write")
+        with pytest.raises(Terminated), guard.deferred():
+            with guard.deferred():  # nested: only the outermost raises
+                os.kill(os.getpid(), signal.SIGTERM)
+                sum(range(10_000))  # the handler runs here, and holds it
+            done.append("inner")
+            done.append("write")
         with pytest.raises(Terminated):
             guard.check()  # and again at the next safe point
     assert done == ["inner", "write"]
