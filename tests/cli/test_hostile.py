@@ -440,6 +440,39 @@ def test_an_interrupt_python_wraps_at_start_up_is_still_130(monkeypatch):
     assert exit_.value.code == 130 and said == ["critfric: interrupted"]
 
 
+def test_an_interrupt_python_swallows_at_start_up_is_still_130(monkeypatch):
+    """A Ctrl-C raised where Python only reports it (an import lock's weakref callback
+    during start-up): not printed as "Exception ignored ... Traceback" and dropped, but one
+    line and exit 130 once the imports are done; the hook is given back."""
+    import types
+
+    from critfric import cli
+
+    class Dropped:
+        def __del__(self):
+            raise KeyboardInterrupt
+
+    def app_attr(name):
+        Dropped()  # freed at once: Python hands its KeyboardInterrupt to sys.unraisablehook
+        return lambda: pytest.fail("the command ran after the interrupt")
+
+    fake = types.ModuleType("critfric.cli.app")
+    fake.__getattr__ = app_attr
+    monkeypatch.setitem(sys.modules, "critfric.cli.app", fake)
+    said = []
+
+    def interrupted(line):
+        said.append(line)
+        raise SystemExit(130)
+
+    monkeypatch.setattr(cli, "_interrupted", interrupted)
+    hook = sys.unraisablehook
+    with pytest.raises(SystemExit) as exit_:
+        cli.main()
+    assert exit_.value.code == 130 and said == ["critfric: interrupted"]
+    assert sys.unraisablehook is hook
+
+
 @pytest.mark.parametrize("delay", [0.05, 0.15, 0.25, 0.3, 0.35, 0.45, 0.6])
 def test_ctrl_c_at_any_moment_of_start_up_is_130_without_traceback(tmp_path, delay):
     from helpers import cli_process
