@@ -27,7 +27,7 @@ from threadpoolctl import ThreadpoolController, threadpool_limits
 from ..errors import SolverError
 from ..solvers.backends import PardisoPlan, factorize
 from ..solvers.pardiso import upper_triangle
-from . import fold
+from . import fold, lanczos
 from .bordered import RANK_TOL, orthonormal
 from .pencil import SlidingPencil
 
@@ -42,6 +42,7 @@ SECONDS_PER_D3 = 4.5e-9  # one dense eigenproblem of size d, measured on 2 cores
 COMPLEX_TOL = 1e-9  # |Im kappa| <= COMPLEX_TOL |kappa|: real
 INFINITE = 1e-12  # |beta| <= INFINITE |alpha| in the QZ output: an infinite kappa
 BISECT = 20  # bisections of a flutter bracket on the reduced model
+SEED = 20030328  # the free vibrations' start vector(s): identical runs, identical results
 MODES_TOL = 1e-10  # ARPACK's relative tolerance on the free vibrations: 64 solves for 20
 # modes instead of 76 at machine precision, the frequencies equal to 5e-15 (second order)
 SHARPEN_ROUNDS = 8  # at most this many enlargements of the reduced model at a coalescence
@@ -217,16 +218,7 @@ def reduce(pencil: SlidingPencil, modes: int, *, backend: str = "scipy", order=N
 def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str) -> Reduced:
     n = pencil.size
     k = min(modes + EXTRA_MODES, n - 2)
-    op = spla.LinearOperator((n, n), matvec=factor.solve, dtype=np.float64)
-    v0 = np.random.default_rng(20030328).standard_normal(n)
-    try:
-        w, vecs = spla.eigsh(pencil.Krr, k=k, M=pencil.Mrr, sigma=0.0, which="LM",
-                             OPinv=op, v0=v0, tol=MODES_TOL)
-    except spla.ArpackNoConvergence:
-        raise SolverError("ARPACK did not converge on the free vibrations (K, M); try fewer "
-                          "modes or a coarser mesh") from None
-    order_w = np.argsort(w)
-    w, vecs = w[order_w], vecs[:, order_w]
+    w, vecs = _free_vibrations(pencil, k, factor)
     p0 = pencil.G.shape[1]
     corrected = min(k, modes + CORRECTED_EXTRA)
     if basis == "auto":
@@ -239,6 +231,29 @@ def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str) -> Reduced:
     V = orthonormal(np.column_stack([vecs, factor.solve(np.column_stack(loads))]))
     A0, A1, B0, B1 = (b.form(V, V) for b in _blocks(pencil))
     return Reduced(V, A0, A1, B0, B1, w, vecs)
+
+
+def _free_vibrations(pencil: SlidingPencil, k: int, factor) -> tuple[np.ndarray, np.ndarray]:
+    """The k lowest (omega^2, mode) of (K_rr, M_rr), ascending: block Lanczos where the
+    factorization's solves are cheaper in blocks (:mod:`.lanczos`), else (or if it breaks
+    down) ARPACK, both to the relative tolerance MODES_TOL."""
+    n = pencil.size
+    block = lanczos.block_size(getattr(factor, "backend", ""), n, k)
+    if block is not None:
+        found = lanczos.lowest_modes(pencil.Krr, pencil.Mrr, factor.solve, k, block=block,
+                                     tol=MODES_TOL, seed=SEED)
+        if found is not None:
+            return found[0], found[1]
+    op = spla.LinearOperator((n, n), matvec=factor.solve, dtype=np.float64)
+    v0 = np.random.default_rng(SEED).standard_normal(n)
+    try:
+        w, vecs = spla.eigsh(pencil.Krr, k=k, M=pencil.Mrr, sigma=0.0, which="LM",
+                             OPinv=op, v0=v0, tol=MODES_TOL)
+    except spla.ArpackNoConvergence:
+        raise SolverError("ARPACK did not converge on the free vibrations (K, M); try fewer "
+                          "modes or a coarser mesh") from None
+    order_w = np.argsort(w)
+    return w[order_w], vecs[:, order_w]
 
 
 @dataclass
