@@ -67,7 +67,7 @@ from .eigenproblem import (
 from .ordering import fill_order, pieces
 
 __all__ = ["INFINITE_TOL", "LAWS", "RESIDUAL_TOL", "ContactState", "Mode", "Spectrum",
-           "plan_dense", "schur_spectrum", "solve", "solve_arpack", "solve_dense"]
+           "plan_dense", "schur_spectrum", "solve", "solve_arpack", "solve_dense", "uses_dense"]
 
 EXPLICIT_T_MAX = 3000  # widest ARPACK fallback: form T explicitly up to this p0
 WIDEN = 4  # ARPACK's second try asks for WIDEN times more eigenvalues
@@ -252,6 +252,13 @@ def _method(method: str, rows: int, shift: float, n_slip: int, dim: int) -> str:
         return method
     dense = rows <= (2 * SCHUR_MAX_CONTACT if dim == 2 else AUTO_DENSE_ROWS_3D) and shift == 0.0
     return "dense" if dense or n_slip < 4 else "arpack"
+
+
+def uses_dense(method: str, system: ContactSystem, state: ContactState) -> bool:
+    """Whether :func:`solve` (no shift) takes the dense path, on the Schur complement."""
+    rows = _schur_rows(system)
+    return (_method(method, rows, 0.0, state.n_slip, system.dim) == "dense"
+            and rows <= 2 * SCHUR_MAX_CONTACT)
 
 
 def solve(K, system: ContactSystem, state: ContactState | None = None, *, method="auto",

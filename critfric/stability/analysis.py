@@ -31,9 +31,10 @@ from ..solve import Prepared, prepare
 from ..solvers import eigen
 from ..solvers.backends import resolve_backend
 from ..solvers.eigen import ContactState
+from ..solvers.eigenproblem import Problem
 from ..solvers.from_case import check_dimension, contact_state
 from ..solvers.ordering import fill_order
-from . import fold, locus
+from . import fold, locus, shared
 from .bordered import Deflated
 from .pencil import kept_dofs, sliding_pencil
 
@@ -156,10 +157,20 @@ def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
     modes = min(st["modes"], len(kept))
     _check_work(st["steps"], locus.reduced_size(len(kept), len(slip), modes), modes,
                 case.source)  # before any factorization
-    static = eigen.solve(system.stiffness(*lame(1.0, nu), keep_zeros=plan is not None),
-                         system, state, method=s["method"], count=1, tol=s["tol"],
-                         maxiter=s["maxiter"], real_tol=s["real_tol"], backend=backend,
-                         plan=plan)
+    K = Krr = order = one = None
+    if shared.applies(system, state, kept, s["method"], backend) and len(kept) > locus.FULL_MAX:
+        # SciPy: one factorization of K_rr serves the static stage too (:mod:`.shared`)
+        K = system.stiffness(*lame(1.0, nu))
+        Krr = K[kept][:, kept].tocsr()
+        order = fill_order(system, kept)
+        problem = Problem(K, system, state)
+        one = shared.SharedFactor(K, Krr, problem, kept, order)
+        static = one.spectrum(problem, count=1, real_tol=s["real_tol"])
+    else:
+        static = eigen.solve(system.stiffness(*lame(1.0, nu), keep_zeros=plan is not None),
+                             system, state, method=s["method"], count=1, tol=s["tol"],
+                             maxiter=s["maxiter"], real_tol=s["real_tol"], backend=backend,
+                             plan=plan)
     divergence = {"positive": float(static.positive[0]) if len(static.positive) else None,
                   "negative": float(static.negative[0]) if len(static.negative) else None}
     t1 = time.perf_counter()
@@ -168,9 +179,10 @@ def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
     # solved at E = density = 1 and the body's extent ell = 1 (M / ell^2): the thresholds do
     # not depend on them, kappa = omega^2 scales as E / (density ell^2)
     ell = float(np.ptp(prep.mesh.points, axis=0).max())
-    K = system.stiffness(*lame(1.0, nu))
-    Krr = K[kept][:, kept].tocsr()
-    krr_plan = locus.plan_of(Krr, backend)  # K_rr's analysis beside the mass assembly
+    if K is None:
+        K = system.stiffness(*lame(1.0, nu))
+        Krr = K[kept][:, kept].tocsr()
+    krr_plan = None if one else locus.plan_of(Krr, backend)  # beside the mass assembly
     if krr_plan is not None:
         threads.callback(krr_plan.close)
     M = system.restrict(assemble_mass(prep.mesh, 1.0)) / ell**2
@@ -180,11 +192,12 @@ def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
     notes, warnings = list(static.notes), list(static.warnings)
     if modes < st["modes"]:
         notes.append(f"only {pencil.size} degrees of freedom: {modes} modes followed")
-    order = fill_order(system, pencil.kept) if backend == "scipy" else None
+    if order is None and backend == "scipy":
+        order = fill_order(system, pencil.kept)
     # one factorization of K_rr serves the modes, the reduced basis and the sharpening
-    factor = (locus.factor_of(pencil, backend, order, krr_plan)
-              if pencil.size > locus.FULL_MAX else None)
-    krr_plan = None
+    factor = one or (locus.factor_of(pencil, backend, order, krr_plan)
+                     if pencil.size > locus.FULL_MAX else None)
+    krr_plan = one = None
     red = locus.reduce(pencil, modes, backend=backend, order=order, factor=factor,
                        threads=outer)
     if np.any(red.omega2[:modes] <= 0):
