@@ -26,6 +26,8 @@ from ..fem.pattern import upper_pattern
 
 SOLVE_BLOCK = 32  # right-hand sides a solve phase takes at once: 60 columns at 295 k DOFs took
 # 0.47-0.54 s in blocks of 20-30, 0.65-1.01 s in one call, 0.88-1.00 s in blocks of 6
+SOLVE_ALONE = 4  # fewer right-hand sides than this: one call each (at 295 k DOFs a column
+# took 24 ms alone, 37 ms a column in a call of 2, 29 in one of 3, 23 of 4, 14 of 8)
 SINGULAR = ("the stiffness matrix is singular. Check that the Dirichlet edges hold the body "
             "(no rigid motion left).")
 
@@ -175,9 +177,10 @@ class PardisoFactor:
         b = np.asarray(b, dtype=np.float64)
         if self._index is None and b.ndim == 2:  # blocks of columns, into one column-major x
             out = np.empty_like(b, order="F")
-            for j in range(0, b.shape[1], SOLVE_BLOCK):
-                x = out[:, j:j + SOLVE_BLOCK].T  # C-contiguous: PARDISO writes it in place
-                self._solve(np.ascontiguousarray(b[:, j:j + SOLVE_BLOCK].T), x, transpose)
+            step = 1 if b.shape[1] < SOLVE_ALONE else SOLVE_BLOCK
+            for j in range(0, b.shape[1], step):
+                x = out[:, j:j + step].T  # C-contiguous: PARDISO writes it in place
+                self._solve(np.ascontiguousarray(b[:, j:j + step].T), x, transpose)
             return out
         bt = np.ascontiguousarray(b.T)  # column-major right-hand sides
         if self._index is not None:

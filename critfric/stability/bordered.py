@@ -117,23 +117,39 @@ class Deflated:
                         trans=1 if transpose else 0, check_finite=False)
         return np.concatenate([self.W @ y[:-1], y[-1:]])
 
-    def _precondition(self, u: np.ndarray, transpose: bool) -> np.ndarray:
-        """q + [K_rr^-1 (u - A q); 0] with q the coarse solution of u."""
+    def _precondition(self, u: np.ndarray, transpose: bool):
+        """q + [K_rr^-1 (u - A q); 0] with q the coarse solution of u (a generator: it yields
+        u - A q for the solve with K_rr and is sent the result)."""
         q = self._coarse(u, transpose)
         r = u - self._apply(q, transpose)
-        q[:-1] += self.factor.solve(r[:-1])
+        q[:-1] += yield r[:-1]
         return q
 
     def solve(self, rhs: np.ndarray, transpose: bool = False,
               rough: bool = False) -> np.ndarray:
         """A^-1 rhs (A^-T rhs), rhs (n + 1,) or (n + 1, k), to REFINE_TOL (ROUGH_TOL with
         ``rough``); NotConverged after GMRES_MAX iterations."""
-        with threadpool_limits(1, user_api="blas"):  # see locus.Reduced.blas
-            if rhs.ndim == 2:
-                return np.column_stack([self._solve(col, transpose, rough) for col in rhs.T])
-            return self._solve(rhs, transpose, rough)
+        cols = rhs[:, None] if rhs.ndim == 1 else rhs
+        x = np.column_stack(self.solve_many([(col, transpose) for col in cols.T], rough))
+        return x[:, 0] if rhs.ndim == 1 else x
 
-    def _solve(self, rhs: np.ndarray, transpose: bool, rough: bool) -> np.ndarray:
+    def solve_many(self, systems: list[tuple[np.ndarray, bool]],
+                   rough: bool = False) -> list[np.ndarray]:
+        """A^-1 u (A^-T u if ``transpose``) for each (u, transpose), as :meth:`solve`: one
+        GMRES a system, in lockstep, their solves with K_rr in one call of several columns
+        (SuperLU: 2 columns cost 1.2 times one, 4 columns 1.7 times, measured at 295 k)."""
+        with threadpool_limits(1, user_api="blas"):  # see locus.Reduced.blas
+            runs = [self._solve(u, transpose, rough) for u, transpose in systems]
+            out: list = [None] * len(runs)
+            wanted = {i: _advance(run, None, out, i) for i, run in enumerate(runs)}
+            wanted = {i: u for i, u in wanted.items() if u is not None}
+            while wanted:
+                y = self.factor.solve(np.column_stack(list(wanted.values())))
+                sent = {i: _advance(runs[i], y[:, j], out, i) for j, i in enumerate(wanted)}
+                wanted = {i: u for i, u in sent.items() if u is not None}
+            return out
+
+    def _solve(self, rhs: np.ndarray, transpose: bool, rough: bool):
         tol = ROUGH_TOL if rough else REFINE_TOL
         x = self._coarse(rhs, transpose)
         left = GMRES_MAX
@@ -143,20 +159,20 @@ class Deflated:
                 return x
             if left == 0:
                 raise NotConverged
-            x, used = self._gmres(r, x, transpose, tol, left)
+            x, used = yield from self._gmres(r, x, transpose, tol, left)
             left -= used
 
-    def _gmres(self, r: np.ndarray, x: np.ndarray, transpose: bool, tol: float,
-               most: int) -> tuple[np.ndarray, int]:
+    def _gmres(self, r: np.ndarray, x: np.ndarray, transpose: bool, tol: float, most: int):
         """One cycle of right-preconditioned GMRES from x (residual r), at most ``most``
-        iterations; stops when its residual estimate is below the target."""
+        iterations; stops when its residual estimate is below the target. Returns (x, the
+        iterations used)."""
         beta = np.linalg.norm(r)
         V, Z = [r / beta], []  # the Krylov basis and its preconditioned images, as used
         H = np.zeros((most + 1, most))
         target = tol * self.norm * max(np.max(np.abs(x)), 1e-300)
         while True:
             j = len(Z)
-            Z.append(self._precondition(V[j], transpose))
+            Z.append((yield from self._precondition(V[j], transpose)))
             w = self._apply(Z[j], transpose)
             for _ in range(2):  # classical Gram-Schmidt, twice
                 h = np.array([v @ w for v in V])
@@ -172,6 +188,16 @@ class Deflated:
             if estimate <= 0.5 * target or H[j + 1, j] == 0 or j + 1 == most:
                 return x + sum(yi * z for yi, z in zip(y, Z)), j + 1
             V.append(w / H[j + 1, j])
+
+
+def _advance(run, value, out: list, i: int) -> np.ndarray | None:
+    """Run a solve to its next solve with K_rr (its right-hand side), sending it ``value``
+    (None: start it); None once it is done (its solution in out[i])."""
+    try:
+        return next(run) if value is None else run.send(value)
+    except StopIteration as done:
+        out[i] = done.value
+        return None
 
 
 class Bordered:
@@ -227,6 +253,11 @@ class Bordered:
                 return self.lu.solve(rhs, transpose=transpose)
             x = self._refined(rhs, transpose)
         return x
+
+    def solve_many(self, systems: list[tuple[np.ndarray, bool]],
+                   rough: bool = False) -> list[np.ndarray]:
+        """:meth:`solve` of each (u, transpose), one after the other."""
+        return [self.solve(u, transpose, rough) for u, transpose in systems]
 
     def _refined(self, rhs: np.ndarray, transpose: bool) -> np.ndarray | None:
         x = self.lu.solve(rhs, transpose=transpose)

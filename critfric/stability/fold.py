@@ -89,19 +89,19 @@ def _step(F, pencil: SlidingPencil, L, Lk, L_kf, f: float, kappa: float, b: np.n
     F.set(L, b, c)
     e = np.zeros(n + 1)
     e[n] = 1.0
-    vs = F.solve(e)
-    ws = F.solve(e, transpose=True)
+    vs, ws = F.solve_many([(e, False), (e, True)])
     v, sigma, w = vs[:n], vs[n], ws[:n]
     Lf = pencil.L_f(kappa)
     Lkv, Lfv = Lk @ v, Lf @ v
     s_k, s_f = -w @ Lkv, -w @ Lfv
-    rhs = np.zeros((n + 1, 2))
-    rhs[:n, 0], rhs[:n, 1] = -Lkv, -Lfv
-    dv = F.solve(rhs, rough=True)  # v_kappa, v_f: only the Jacobian's
-    rhs_t = np.zeros((n + 1, 2))
-    rhs_t[:n, 0], rhs_t[:n, 1] = -(Lk.T @ w), -(Lf.T @ w)
-    dw = F.solve(rhs_t, transpose=True, rough=True)  # w_kappa, w_f
-    v_k, v_f, w_k, w_f = dv[:n, 0], dv[:n, 1], dw[:n, 0], dw[:n, 1]
+
+    def bordered_rhs(x: np.ndarray) -> np.ndarray:
+        return np.concatenate([x, [0.0]])
+
+    # v_kappa, v_f, w_kappa, w_f: only the Jacobian's
+    v_k, v_f, w_k, w_f = (x[:n] for x in F.solve_many(
+        [(bordered_rhs(-Lkv), False), (bordered_rhs(-Lfv), False),
+         (bordered_rhs(-(Lk.T @ w)), True), (bordered_rhs(-(Lf.T @ w)), True)], rough=True))
     s_kk = -(w_k @ Lkv + w @ (Lk @ v_k))
     s_kf = -(w_f @ Lkv + w @ (L_kf @ v) + w @ (Lk @ v_f))
     J = np.array([[s_f, s_k], [s_kf, s_kk]])
