@@ -52,18 +52,21 @@ def lowest_modes(K, M, solve, k: int, *, block: int, tol: float, seed: int
     Q = np.empty((n, width), order="F")  # M-orthonormal basis (pages touched as used)
     T = np.zeros((width + block, width))
     X = np.random.default_rng(seed).standard_normal((n, block))
-    R = _cholesky(X.T @ (M @ X))
+    MX = M @ X
+    R = _cholesky(X.T @ MX)
     if R is None:
         return None
-    Q[:, :block] = _right_divide(X, R)
+    Q[:, :block], MQ = _right_divide(X, R), [_right_divide(MX, R)]  # M Q of the newest two
     c = block  # columns of Q in use
     while True:
         j = c - block  # the newest block: Q[:, j:c]
-        W = solve(M @ Q[:, j:c])
+        W = solve(MQ[-1])
+        MW = M @ W
         lo = max(0, j - block)
-        H = Q[:, lo:c].T @ (M @ W)  # the recurrence's coefficients
+        H = Q[:, lo:c].T @ MW  # the recurrence's coefficients
         W -= Q[:, lo:c] @ H
-        C = Q[:, :c].T @ (M @ W)  # once against every block
+        MW -= np.hstack(MQ) @ H
+        C = Q[:, :c].T @ MW  # once against every block
         W -= Q[:, :c] @ C
         C[lo:c] += H
         T[:c, j:c] = C
@@ -83,6 +86,7 @@ def lowest_modes(K, M, solve, k: int, *, block: int, tol: float, seed: int
             return None
         T[c:c + block, j:c] = R
         Q[:, c:c + block] = _right_divide(W, R)
+        MQ = [MQ[-1], _right_divide(MW, R)]
         c += block
 
 
