@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from .case.schema import Case, as_case
-from .errors import CaseError
+from .errors import CaseError, SolverError
 from .fem.assembly import assemble_elasticity, lame
 from .fem.contact import ContactSystem, check_held, contact_layout, contact_system
 from .fem.contact3d import contact_layout3d, contact_system3d, slip_directions
@@ -30,7 +30,9 @@ from .meshing.mesh import build_mesh, inline_mesh
 from .meshing.singular import contact_run, singular_points, state_junctions
 from .meshing.solid import check_solid, is_solid, solid_mesh
 from .solvers import eigen
+from .solvers.backends import resolve_backend
 from .solvers.from_case import check_dimension, contact_state, plane_positions, slip_angles
+from .solvers.ordering import dissect_beside, dissects
 
 
 @dataclass
@@ -292,6 +294,11 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
         plan.append(eigen.plan_dense(ptr, col, layout.contact_dofs, method=s["method"],
                                      shift=s["shift"], backend=s["backend"], dim=mesh.dim))
 
+    try:  # SciPy orders by the mesh's nested dissection: made beside the assembly, joined below
+        scipy = dissects(mesh) and resolve_backend(case.solve["backend"]) == "scipy"
+    except SolverError:  # an unknown or missing backend: reported where the solver is chosen
+        scipy = False
+    ordering = dissect_beside(mesh) if scipy else None
     try:
         K_lam, K_G = assemble_elasticity(mesh, on_pattern=start if _plan else None)
         t3 = time.perf_counter()
@@ -301,6 +308,9 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
     except BaseException:
         _close(plan[0] if plan else None)
         raise
+    finally:
+        if ordering is not None:
+            ordering.join()
     t4 = time.perf_counter()
     return Prepared(mesh, system, {"mesh": t1 - t0, "assembly": t3 - t2,
                                    "contact": t4 - t3 + t2 - t1},
