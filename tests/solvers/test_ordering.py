@@ -44,7 +44,7 @@ def test_a_dissection_under_way_is_waited_for_not_repeated(monkeypatch):
 
 @pytest.mark.parametrize("backend, started", [("scipy", True), ("pardiso", False)])
 def test_prepare_dissects_for_scipy_alone_and_joins(backend, started, monkeypatch):
-    import critfric.solve as solve
+    from critfric import solve
 
     made = []
     beside = ordering.dissect_beside
