@@ -5,9 +5,9 @@ SuperLU's solve of one column reads the whole factor for one vector: at 295 k DO
 square, K_rr of the sliding pencil) 80-85 ms a column alone, 32 ms a column four at a time,
 22-25 ms from eight on (measured, one BLAS thread). ARPACK asks for its 64 solves one at a
 time; this Lanczos asks for 26 blocks of four (104 columns) for the same 20 modes to the
-same tolerance. PARDISO's parallel solve of one column is already its cheapest per column
-(24 ms against 25-32 ms in blocks of two to four): there ARPACK stays
-(:data:`BLOCK`).
+same tolerance. PARDISO's parallel solve of one column costs 24 ms, in blocks of 2, 3 and 4
+37, 29 and 23 ms a column: 104 columns in blocks cost more than ARPACK's 64 alone, and
+ARPACK stays there (:data:`BLOCK`).
 
 The operator A = K^-1 M is self-adjoint in the M inner product. Each step applies it to the
 newest block, orthogonalizes the result against the two newest blocks (the three-term

@@ -14,7 +14,7 @@ rows of J that are not contact DOFs (m): S = A_cc - A_cm A_mm^-1 A_mc. A contact
 extends to the free DOFs by x_m = -A_mm^-1 A_mc x_c, then from x_J into the rest of the kept
 rows by K_rr's factorization (:meth:`ScipySchur.extend`). One factorization instead of two
 (K, then K_rr): SuperLU's solves with K_rr serve the free vibrations, the reduced basis,
-the sharpening and Newton's bordered solves as before. PARDISO keeps its two: its Schur
+the sharpening and Newton's bordered solves. PARDISO factors twice: its Schur
 factorization solves K_rr only by phases 331 and 333, each as slow as a whole solve
 (measured 45 ms against 24 ms a column at 295 k DOFs).
 """
@@ -47,13 +47,10 @@ def boundary_rows(K: sp.csr_matrix, kept: np.ndarray, contact: np.ndarray) -> np
     return J[J >= 0]
 
 
-def applies(system: ContactSystem, state: ContactState, kept: np.ndarray, method: str,
-            backend: str) -> bool:
-    """Whether the stability command takes its static stage from K_rr's factorization: SciPy,
-    the static stage's dense path, and A small enough (checked again on the rows)."""
-    rows = system.dim * system.n_contact
-    return (backend == "scipy" and eigen.uses_dense(method, system, state)
-            and rows + (system.n_dofs - len(kept)) <= DENSE_MAX)
+def applies(system: ContactSystem, state: ContactState, method: str, backend: str) -> bool:
+    """Whether the stability command may take its static stage from K_rr's factorization:
+    SciPy, and the static stage's dense path (:meth:`SharedFactor.of` checks A's size)."""
+    return backend == "scipy" and eigen.uses_dense(method, system, state)
 
 
 class SharedFactor:
@@ -62,15 +59,22 @@ class SharedFactor:
 
     backend = "scipy"
 
-    def __init__(self, K: sp.csr_matrix, Krr: sp.csr_matrix, problem: Problem,
-                 kept: np.ndarray, order: np.ndarray):
+    @classmethod
+    def of(cls, K: sp.csr_matrix, Krr: sp.csr_matrix, problem: Problem, kept: np.ndarray,
+           order: np.ndarray) -> SharedFactor | None:
+        """The shared factorization, or None where A would exceed DENSE_MAX rows (the caller
+        factors K and K_rr apart)."""
         K = sp.csr_matrix(K)
+        J = boundary_rows(K, kept, problem.contact_dofs)
+        if len(J) + K.shape[0] - len(kept) > DENSE_MAX:
+            return None
+        return cls(K, Krr, problem, kept, order, J)
+
+    def __init__(self, K: sp.csr_matrix, Krr: sp.csr_matrix, problem: Problem,
+                 kept: np.ndarray, order: np.ndarray, J: np.ndarray):
         n = K.shape[0]
         contact = problem.contact_dofs
-        J = boundary_rows(K, kept, contact)
         eliminated = np.setdiff1d(np.arange(n), kept)
-        if len(J) + len(eliminated) > DENSE_MAX:
-            raise SolverError("internal: the boundary rows exceed DENSE_MAX")
         self._factor = ScipySchur(Krr, J, order=order)
         self._kept, self._eliminated, self._J = kept, eliminated, J
         # A's rows: J (kept-DOF positions), then e; the contact DOFs' rows in A, in order

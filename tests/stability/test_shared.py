@@ -16,7 +16,7 @@ from critfric.solvers import eigen
 from critfric.solvers.eigen import ContactState
 from critfric.solvers.eigenproblem import Problem
 from critfric.solvers.ordering import fill_order
-from critfric.stability import shared
+from critfric.stability import shared, stability_case
 from critfric.stability.pencil import kept_dofs
 
 
@@ -42,7 +42,7 @@ def test_the_schur_complement_and_the_spectrum_equal_the_static_path(square, whi
     _, kept = kept_dofs(system, state)
     problem = Problem(K, system, state)
     Krr = K[kept][:, kept].tocsr()
-    one = shared.SharedFactor(K, Krr, problem, kept, fill_order(system, kept))
+    one = shared.SharedFactor.of(K, Krr, problem, kept, fill_order(system, kept))
     # S against the Schur complement by the inverse: (K^-1)_cc = S^-1
     c = problem.contact_dofs
     E = np.zeros((K.shape[0], len(c)))
@@ -84,7 +84,27 @@ def test_rows_coupled_to_the_eliminated_ones_are_boundary_rows(square):
 def test_scipy_alone_takes_the_shared_factorization(square):
     system, _ = square
     state = ContactState.all_slipping(system.n_contact)
+    assert shared.applies(system, state, "auto", "scipy")
+    assert not shared.applies(system, state, "auto", "pardiso")
+    assert not shared.applies(system, state, "arpack", "scipy")
+
+
+def test_a_boundary_too_large_for_the_dense_elimination_factors_apart(square, monkeypatch):
+    """Above DENSE_MAX rows of A: no shared factorization, and the command's static stage and
+    thresholds are those of the two factorizations."""
+    system, K = square
+    state = ContactState.all_slipping(system.n_contact)
     _, kept = kept_dofs(system, state)
-    assert shared.applies(system, state, kept, "auto", "scipy")
-    assert not shared.applies(system, state, kept, "auto", "pardiso")
-    assert not shared.applies(system, state, kept, "arpack", "scipy")
+    problem = Problem(K, system, state)
+    Krr = K[kept][:, kept].tocsr()
+    order = fill_order(system, kept)
+    assert shared.SharedFactor.of(K, Krr, problem, kept, order) is not None
+    case = load_case("unit-square", overrides={"mesh.size": 0.05, "solve.backend": "scipy",
+                                               "stability.modes": 4})
+    both = stability_case(case)
+    monkeypatch.setattr(shared, "DENSE_MAX", 10)
+    assert shared.SharedFactor.of(K, Krr, problem, kept, order) is None
+    apart = stability_case(case)
+    for key in ("positive", "negative"):
+        assert both.divergence[key] == pytest.approx(apart.divergence[key], rel=1e-10)
+        assert both.flutter[key] == pytest.approx(apart.flutter[key], rel=1e-9)
