@@ -25,6 +25,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as la
 
+from ..guards import available_memory
+
 #: block sizes by linear-solver backend (the factorization's ``backend``); a backend not
 #: listed uses ARPACK
 BLOCK = {"scipy": 4}
@@ -32,12 +34,17 @@ WIDTH, EXTRA = 4, 64  # the basis holds at most WIDTH k + EXTRA columns (k modes
 # 144 used for k = 20 at 295 k DOFs, 80 of 112 for k = 12 at 2.8 k (measured)
 RANK_TOL = 1e-10  # a new block below this times the operator's norm: the basis is invariant
 MIN_ROWS = 2000  # below this many DOFs ARPACK (its solves cost next to nothing)
+MEMORY_SHARE = 0.25  # the basis' largest share of the memory available
 
 
 def block_size(backend: str, n: int, k: int) -> int | None:
-    """The block size for ``k`` modes of an ``n``-DOF problem on a backend, or None (ARPACK)."""
+    """The block size for ``k`` modes of an ``n``-DOF problem on a backend, or None (ARPACK:
+    also where the basis, WIDTH k + EXTRA columns against ARPACK's 2 k + 1, would take more
+    than MEMORY_SHARE of the memory available)."""
     block = BLOCK.get(backend)
     if block is None or n < max(MIN_ROWS, 2 * (WIDTH * k + EXTRA)):
+        return None
+    if 8.0 * n * (WIDTH * k + EXTRA) > MEMORY_SHARE * available_memory():
         return None
     return block
 

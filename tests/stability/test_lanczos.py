@@ -78,7 +78,11 @@ def test_block_lanczos_and_arpack_give_the_same_modes(pencil, monkeypatch):
     np.testing.assert_allclose(cosines, 1.0, atol=1e-9)
 
 
-def test_backends_without_cheaper_blocks_use_arpack():
+def test_backends_without_cheaper_blocks_use_arpack(monkeypatch):
+    monkeypatch.setattr(lanczos, "available_memory", lambda: 64e9)
     assert lanczos.block_size("pardiso", 10**6, 20) is None
     assert lanczos.block_size("scipy", lanczos.MIN_ROWS - 1, 20) is None
     assert lanczos.block_size("scipy", 10**6, 20) == lanczos.BLOCK["scipy"]
+    # 10^6 DOFs x 144 columns: 1.15 GB, more than a quarter of 4 GB
+    monkeypatch.setattr(lanczos, "available_memory", lambda: 4e9)
+    assert lanczos.block_size("scipy", 10**6, 20) is None
