@@ -93,6 +93,23 @@ size = {size}
 """
 
 
+def case_pencil(case, state=None):
+    """The sliding pencil of a case's mesh at nu = 0.3 (E = density = 1): of ``state``, or
+    of every contact node slipping."""
+    from critfric.fem.assembly import assemble_mass
+    from critfric.solve import prepare
+    from critfric.solvers.eigen import ContactState
+    from critfric.stability import sliding_pencil
+
+    prep = prepare(case)
+    K = prep.system.stiffness(*lame(1.0, 0.3))
+    M = prep.system.restrict(assemble_mass(prep.mesh))
+    if callable(state):
+        state = state(prep.system)
+    return sliding_pencil(prep.system, K, M,
+                          state or ContactState.all_slipping(prep.system.n_contact))
+
+
 def run_cli(*args):
     """``critfric ARGS`` in this process (typer's CliRunner); every argument str()-ed."""
     from typer.testing import CliRunner

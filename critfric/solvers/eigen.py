@@ -82,19 +82,20 @@ def _schur_rows(system: ContactSystem) -> int:
 
 
 def solve_dense(K, system: ContactSystem, state: ContactState, *, count: int,
-                real_tol: float, backend: str = "scipy", plan=None,
-                law: str = "rate") -> Spectrum:
+                real_tol: float, backend: str = "scipy", plan=None, law: str = "rate",
+                made=None) -> Spectrum:
     """Every eigenvalue, from the dense pencil on the Schur complement onto Gamma_C (``plan``:
-    :func:`plan_dense`'s analysis of K's pattern, if any)."""
+    :func:`plan_dense`'s analysis of K's pattern, if any; ``made``: that Schur complement
+    already made, an object with ``S``, ``extend`` and ``backend`` as :func:`schur` gives)."""
     prob = Problem(K, system, state, law)
     p, rows = system.n_contact, _schur_rows(system)
     if rows > 2 * SCHUR_MAX_CONTACT:
         raise SolverError(f"the dense path would form a {rows} x {rows} Schur complement "
                           f"({p} contact nodes > {2 * SCHUR_MAX_CONTACT // system.dim}); use "
                           "method = 'arpack'")
-    sc = schur(K, prob.contact_dofs, backend=backend,
-               order=fill_order(system) if backend == "scipy" else None,
-               pieces=lambda: pieces(system), plan=plan)
+    sc = made or schur(K, prob.contact_dofs, backend=backend,
+                       order=fill_order(system) if backend == "scipy" else None,
+                       pieces=lambda: pieces(system), plan=plan)
     spec = schur_spectrum(prob, sc.S, sc.extend, count=count, real_tol=real_tol)
     spec.backend = sc.backend
     return spec
@@ -263,16 +264,17 @@ def uses_dense(method: str, system: ContactSystem, state: ContactState) -> bool:
 
 def solve(K, system: ContactSystem, state: ContactState | None = None, *, method="auto",
           count=1, shift=0.0, tol=0.0, maxiter=None, real_tol=1e-8, gamma=1,
-          backend="auto", plan=None, law="rate") -> Spectrum:
+          backend="auto", plan=None, law="rate", made=None) -> Spectrum:
     """Critical friction coefficients of a contact state (default: all nodes slipping).
     ``plan``: :func:`plan_dense` of K's pattern (used if the dense path runs on PARDISO).
-    ``law``: the 3D slip law of the e DOF, "rate" or "frozen" (no effect in 2D)."""
+    ``law``: the 3D slip law of the e DOF, "rate" or "frozen" (no effect in 2D).
+    ``made``: the Schur complement onto the contact DOFs, already made (the dense path's)."""
     state = state or ContactState.all_slipping(system.n_contact, gamma)
     backend = resolve_backend(backend)
     method = _method(method, _schur_rows(system), shift, state.n_slip, system.dim)
     if method == "dense":
         return solve_dense(K, system, state, count=count, real_tol=real_tol, backend=backend,
-                           plan=plan, law=law)
+                           plan=plan, law=law, made=made)
     if method == "arpack":
         return solve_arpack(K, system, state, count=count, shift=shift, tol=tol,
                             maxiter=maxiter, real_tol=real_tol, backend=backend, law=law)

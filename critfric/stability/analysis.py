@@ -163,15 +163,11 @@ def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
         K = system.stiffness(*lame(1.0, nu))
         Krr = K[kept][:, kept].tocsr()
         order = fill_order(system, kept)
-        problem = Problem(K, system, state)
-        one = shared.SharedFactor.of(K, Krr, problem, kept, order)
-    if one is not None:
-        static = one.spectrum(problem, count=1, real_tol=s["real_tol"])
-    else:
-        static = eigen.solve(system.stiffness(*lame(1.0, nu), keep_zeros=plan is not None)
-                             if K is None else K, system, state, method=s["method"], count=1,
-                             tol=s["tol"], maxiter=s["maxiter"], real_tol=s["real_tol"],
-                             backend=backend, plan=plan)
+        one = shared.SharedFactor.of(K, Krr, Problem(K, system, state), kept, order)
+    static = eigen.solve(system.stiffness(*lame(1.0, nu), keep_zeros=plan is not None)
+                         if K is None else K, system, state, method=s["method"], count=1,
+                         tol=s["tol"], maxiter=s["maxiter"], real_tol=s["real_tol"],
+                         backend=backend, plan=plan, made=one)
     divergence = {"positive": float(static.positive[0]) if len(static.positive) else None,
                   "negative": float(static.negative[0]) if len(static.negative) else None}
     t1 = time.perf_counter()

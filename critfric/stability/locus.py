@@ -238,7 +238,7 @@ def _free_vibrations(pencil: SlidingPencil, k: int, factor) -> tuple[np.ndarray,
     factorization's solves are cheaper in blocks (:mod:`.lanczos`), else (or if it breaks
     down) ARPACK, both to the relative tolerance MODES_TOL."""
     n = pencil.size
-    block = lanczos.block_size(getattr(factor, "backend", ""), n, k)
+    block = lanczos.block_size(factor.backend, n, k)
     if block is not None:
         found = lanczos.lowest_modes(pencil.Krr, pencil.Mrr, factor.solve, k, block=block,
                                      tol=MODES_TOL, seed=SEED)

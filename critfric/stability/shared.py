@@ -30,7 +30,7 @@ from ..fem.contact import ContactSystem
 from ..solvers import eigen
 from ..solvers.backends import ScipySchur
 from ..solvers.eigen import ContactState
-from ..solvers.eigenproblem import Problem, Spectrum
+from ..solvers.eigenproblem import Problem
 
 DENSE_MAX = 8000  # rows of A (J + e) up to which the static stage is taken from K_rr's factor
 
@@ -120,10 +120,3 @@ class SharedFactor:
         x[self._kept] = self._factor.extend(a[:self._nJ])
         x[self._eliminated] = a[self._nJ:]
         return x
-
-    def spectrum(self, problem: Problem, *, count: int, real_tol: float) -> Spectrum:
-        """The static stage's critical coefficients, as :func:`eigen.solve_dense` gives them."""
-        spec = eigen.schur_spectrum(problem, self.S, self.extend, count=count,
-                                    real_tol=real_tol)
-        spec.backend = self.backend
-        return spec

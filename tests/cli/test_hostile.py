@@ -412,49 +412,12 @@ def test_an_address_space_cap_is_exit_2_with_the_estimate(tmp_path):
     assert "Traceback" not in proc.stderr and not (tmp_path / "r.h5").exists()
 
 
-def test_an_interrupt_python_wraps_at_start_up_is_still_130(monkeypatch):
-    """Python 3.11 turns a KeyboardInterrupt raised in a class's __set_name__ (as `import
-    typer` -> `import platform` does) into a RuntimeError: still one line and exit 130."""
+def _start_up_with_app(monkeypatch, app_attr):
+    """Run ``cli.main()`` with its ``from .app import app`` answered by ``app_attr`` (a module
+    ``__getattr__``): the exit code and the lines ``_interrupted`` was given."""
     import types
 
     from critfric import cli
-
-    def wrapped(name):
-        try:
-            raise KeyboardInterrupt
-        except KeyboardInterrupt as exc:
-            raise RuntimeError("Error calling __set_name__ on 'cached_property'") from exc
-
-    fake = types.ModuleType("critfric.cli.app")
-    fake.__getattr__ = wrapped
-    monkeypatch.setitem(sys.modules, "critfric.cli.app", fake)
-    said = []
-
-    def interrupted(line):
-        said.append(line)
-        raise SystemExit(130)
-
-    monkeypatch.setattr(cli, "_interrupted", interrupted)
-    with pytest.raises(SystemExit) as exit_:
-        cli.main()
-    assert exit_.value.code == 130 and said == ["critfric: interrupted"]
-
-
-def test_an_interrupt_python_swallows_at_start_up_is_still_130(monkeypatch):
-    """A Ctrl-C raised where Python only reports it (an import lock's weakref callback
-    during start-up): not printed as "Exception ignored ... Traceback" and dropped, but one
-    line and exit 130 once the imports are done; the hook is given back."""
-    import types
-
-    from critfric import cli
-
-    class Dropped:
-        def __del__(self):
-            raise KeyboardInterrupt
-
-    def app_attr(name):
-        Dropped()  # freed at once: Python hands its KeyboardInterrupt to sys.unraisablehook
-        return lambda: pytest.fail("the command ran after the interrupt")
 
     fake = types.ModuleType("critfric.cli.app")
     fake.__getattr__ = app_attr
@@ -466,10 +429,39 @@ def test_an_interrupt_python_swallows_at_start_up_is_still_130(monkeypatch):
         raise SystemExit(130)
 
     monkeypatch.setattr(cli, "_interrupted", interrupted)
-    hook = sys.unraisablehook
     with pytest.raises(SystemExit) as exit_:
         cli.main()
-    assert exit_.value.code == 130 and said == ["critfric: interrupted"]
+    return exit_.value.code, said
+
+
+def test_an_interrupt_python_wraps_at_start_up_is_still_130(monkeypatch):
+    """Python 3.11 turns a KeyboardInterrupt raised in a class's __set_name__ (as `import
+    typer` -> `import platform` does) into a RuntimeError: still one line and exit 130."""
+
+    def wrapped(name):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise RuntimeError("Error calling __set_name__ on 'cached_property'") from exc
+
+    assert _start_up_with_app(monkeypatch, wrapped) == (130, ["critfric: interrupted"])
+
+
+def test_an_interrupt_python_swallows_at_start_up_is_still_130(monkeypatch):
+    """A Ctrl-C raised where Python only reports it (an import lock's weakref callback
+    during start-up): not printed as "Exception ignored ... Traceback" and dropped, but one
+    line and exit 130 once the imports are done; the hook is given back."""
+
+    class Dropped:
+        def __del__(self):
+            raise KeyboardInterrupt
+
+    def app_attr(name):
+        Dropped()  # freed at once: Python hands its KeyboardInterrupt to sys.unraisablehook
+        return lambda: pytest.fail("the command ran after the interrupt")
+
+    hook = sys.unraisablehook
+    assert _start_up_with_app(monkeypatch, app_attr) == (130, ["critfric: interrupted"])
     assert sys.unraisablehook is hook
 
 

@@ -6,22 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
+from helpers import case_pencil
 
 from critfric.case.schema import load_case
-from critfric.fem.assembly import assemble_mass, lame
-from critfric.solve import prepare
-from critfric.solvers.eigen import ContactState
-from critfric.stability import bordered, fold, locus, sliding_pencil
+from critfric.stability import bordered, fold, locus
 
 
 @pytest.fixture(scope="module")
 def sharpened():
     """The unit square, P1, h = 0.05 (2.6 k kept DOFs): its positive onset, sharpened."""
-    case = load_case("unit-square", overrides={"mesh.size": 0.05})
-    prep = prepare(case)
-    K = prep.system.stiffness(*lame(1.0, 0.3))
-    M = prep.system.restrict(assemble_mass(prep.mesh))
-    pencil = sliding_pencil(prep.system, K, M, ContactState.all_slipping(prep.system.n_contact))
+    pencil = case_pencil(load_case("unit-square", overrides={"mesh.size": 0.05}))
     factor = locus.factor_of(pencil, "scipy", None)
     red = locus.reduce(pencil, 6, factor=factor)
     guess = locus.locate_flutter(red, locus.follow(red, 6, np.linspace(0, 2.0, 201)))

@@ -8,23 +8,17 @@ import pytest
 import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from helpers import case_pencil
 
 from critfric.case.schema import load_case
-from critfric.fem.assembly import assemble_mass, lame
-from critfric.solve import prepare
 from critfric.solvers.backends import factorize
-from critfric.solvers.eigen import ContactState
-from critfric.stability import lanczos, locus, sliding_pencil
+from critfric.stability import lanczos, locus
 
 
 @pytest.fixture(scope="module")
 def pencil():
     """The all-slipping pencil of the unit square, P1, h = 0.03 (above lanczos.MIN_ROWS)."""
-    case = load_case("unit-square", overrides={"mesh.size": 0.03})
-    prep = prepare(case)
-    K = prep.system.stiffness(*lame(1.0, 0.3))
-    M = prep.system.restrict(assemble_mass(prep.mesh))
-    pen = sliding_pencil(prep.system, K, M, ContactState.all_slipping(prep.system.n_contact))
+    pen = case_pencil(load_case("unit-square", overrides={"mesh.size": 0.03}))
     assert pen.size >= lanczos.MIN_ROWS
     return pen
 

@@ -10,14 +10,13 @@ import numpy as np
 import pytest
 import scipy.linalg as la
 import scipy.sparse as sp
-from helpers import run_cli
+from helpers import case_pencil, run_cli
 from threadpoolctl import threadpool_limits
 
 from critfric.case.schema import load_case
 from critfric.fem.assembly import assemble_mass, lame
 from critfric.solve import prepare, solve_case
-from critfric.solvers.eigen import ContactState
-from critfric.stability import analysis, fold, locus, sliding_pencil, stability_case
+from critfric.stability import analysis, fold, locus, stability_case
 from critfric.stability.pencil import SlidingPencil
 
 
@@ -71,11 +70,7 @@ def square():
 @pytest.fixture(scope="module")
 def square_pencil(square):
     """The all-slipping pencil of ``square``'s mesh (nu = 0.3)."""
-    case, _ = square
-    prep = prepare(case)
-    K = prep.system.stiffness(*lame(1.0, 0.3))
-    M = prep.system.restrict(assemble_mass(prep.mesh))
-    return sliding_pencil(prep.system, K, M, ContactState.all_slipping(prep.system.n_contact))
+    return case_pencil(square[0])
 
 
 def _dense_pencil(case):
@@ -161,12 +156,9 @@ def test_a_contact_state_with_stuck_nodes():
     result = stability_case(case)
     static = solve_case(case)
     assert result.divergence["positive"] == pytest.approx(static.positive[0], rel=1e-12)
-    prep = prepare(case)
-    K = prep.system.stiffness(*lame(1.0, 0.3))
-    M = prep.system.restrict(assemble_mass(prep.mesh))
     from critfric.solvers.from_case import contact_state
 
-    pencil = sliding_pencil(prep.system, K, M, contact_state(case, prep.system))
+    pencil = case_pencil(case, lambda system: contact_state(case, system))
     omega2 = la.eigh(pencil.Krr.toarray(), pencil.Mrr.toarray(), eigvals_only=True)
     assert np.allclose(result.frequencies, np.sqrt(omega2[:4]), rtol=1e-10)
 
