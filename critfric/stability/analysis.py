@@ -37,6 +37,7 @@ from ..solvers.ordering import fill_order
 from . import fold, locus, shared
 from .bordered import Deflated
 from .pencil import kept_dofs, sliding_pencil
+from .sharpen import sharpen
 
 DIRECTIONS = ("positive", "negative")
 DEFAULT_RANGE = 10.0  # friction range each way when the case has no real static coefficient
@@ -216,15 +217,19 @@ def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
             notes.append(f"no flutter of the {modes} lowest modes for {direction} friction "
                          f"up to |friction| = {abs(end):g}")
             continue
-        guesses[direction] = (guess, locus.sharpen(red, pencil, factor, guess))
-    # Newton's bordered solves on K_rr's factorization (freed if they fall back on an LU)
+        guesses[direction] = guess
+    # both directions' sharpening rounds in lockstep (one solve with K_rr a round)
+    guesses = dict(zip(guesses, zip(guesses.values(),
+                                    sharpen(red, pencil, factor, list(guesses.values())))))
+    # Newton's bordered solves on K_rr's factorization (freed if they fall back on an LU),
+    # both directions' in lockstep
     solver = None if factor is None else Deflated(factor, red.modes0)
     factor = None
     t4 = time.perf_counter()
-    for direction, (guess, sharp) in guesses.items():
-        found = fold.find_fold(pencil, sharp.friction, sharp.kappa, sharp.right, sharp.left,
-                               backend=backend, order=order, solver=solver)
-        solver = found.solver
+    starts = [(sharp.friction, sharp.kappa, sharp.right, sharp.left)
+              for _, sharp in guesses.values()]
+    founds = fold.find_folds(pencil, starts, backend=backend, order=order, solver=solver)
+    for (direction, (guess, _)), found in zip(guesses.items(), founds):
         if abs(found.friction - guess.friction) > 1e-3 * abs(guess.friction):
             warnings.append(f"the {direction} flutter onset moved from {guess.friction:.6g} "
                             f"(reduced model) to {found.friction:.6g} on the full pencil; "
@@ -233,7 +238,7 @@ def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
         flutter_kappa[direction] = float(found.kappa) * scale
         shapes[direction] = pencil.shape_xy(found.right)
         steps[direction] = found.steps
-    solver = found = None
+    solver = founds = None
     t5 = time.perf_counter()
     friction, kappa = _merge(parts)
     timings = dict(prep.seconds, static=t1 - t0, mass=t2 - t1, modes=t3 - t2, branches=t4 - t3,

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SolverError
-from .bordered import Bordered, Deflated, NotConverged
+from .bordered import Bordered, Deflated, NotConverged, solve_jointly
 from .pencil import SlidingPencil
 
 FOLD_TOL = 1e-9  # relative Newton step after which the coalescence is converged: the
@@ -54,20 +54,85 @@ def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray
     ``solver``: a :class:`Deflated` on the pencil's K_rr, or the solver of an earlier call
     on the same pencil (the other direction; PARDISO reuses a :class:`Bordered`'s analysis);
     None: :class:`Bordered`."""
+    F = Bordered(backend, order) if solver is None else solver.renewed()
+    run = _newton(pencil, f0, kappa0, right, left, F, backend, order)
+    request = next(run)
+    while True:
+        F, systems, rough = request
+        try:
+            solved = F.solve_many(systems, rough)
+        except NotConverged as stalled:
+            request = _resume(run, stalled)
+        else:
+            request = _resume(run, solved)
+        if isinstance(request, Fold):
+            return request
+
+
+def find_folds(pencil: SlidingPencil, starts: list[tuple], *, backend: str = "scipy",
+               order=None, solver: Bordered | Deflated | None = None) -> list[Fold]:
+    """:func:`find_fold` from each start (f0, kappa0, right, left). With a :class:`Deflated`
+    solver, their Newton steps run in lockstep, every GMRES iteration's solves with K_rr in
+    one call (:func:`.bordered.solve_jointly`); if any of them stalls, one after the other
+    from their starts (the solver passed on, as it falls back on an LU)."""
+    if isinstance(solver, Deflated) and len(starts) > 1:
+        try:
+            return _lockstep(pencil, starts, solver, backend, order)
+        except NotConverged:
+            pass
+    found = []
+    for start in starts:
+        found.append(find_fold(pencil, *start, backend=backend, order=order, solver=solver))
+        solver = found[-1].solver
+    return found
+
+
+def _lockstep(pencil: SlidingPencil, starts: list[tuple], solver: Deflated, backend: str,
+              order) -> list[Fold]:
+    runs = [_newton(pencil, *start, solver if i == 0 else solver.sibling(), backend, order)
+            for i, start in enumerate(starts)]
+    requests = {i: next(run) for i, run in enumerate(runs)}
+    found: list = [None] * len(runs)
+    while requests:
+        solved = solve_jointly(list(requests.values()))  # NotConverged: given up
+        for (i, _), x in zip(list(requests.items()), solved):
+            request = _resume(runs[i], x)
+            if isinstance(request, Fold):
+                found[i] = request
+                del requests[i]
+            else:
+                requests[i] = request
+    return found
+
+
+def _resume(run, value):
+    """Send a Newton run its solutions (or throw NotConverged into it): its next request,
+    or its Fold once done."""
+    try:
+        return run.throw(value) if isinstance(value, NotConverged) else run.send(value)
+    except StopIteration as done:
+        return done.value
+
+
+def _newton(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
+            left: np.ndarray, F, backend: str, order):
+    """Newton's method from (f0, kappa0) on solver F, as a generator: it yields its
+    bordered solves as requests (solver, systems, rough), is sent their solutions (or
+    thrown NotConverged: it then factors the bordered matrix, :class:`Bordered`) and
+    returns the Fold."""
     n = pencil.size
     f, kappa = float(f0), float(kappa0)
     c, b = _unit(right), _unit(left)
     L_kf = pencil.L_kappa_f()
-    F = Bordered(backend, order) if solver is None else solver.renewed()
     for step in range(1, MAX_STEPS + 1):
         B = pencil.B(f)  # L = A(f) - kappa B(f) and dL/dkappa = -B(f) from one B(f)
         L, Lk = (pencil.A(f) - kappa * B).tocsr(), -B
         try:
-            df, dk, v, w = _step(F, pencil, L, Lk, L_kf, f, kappa, b, c)
+            df, dk, v, w = yield from _step(F, pencil, L, Lk, L_kf, f, kappa, b, c)
         except NotConverged:  # the deflated solves stalled: factor the bordered matrix
             F.release()
             F = Bordered(backend, order)
-            df, dk, v, w = _step(F, pencil, L, Lk, L_kf, f, kappa, b, c)
+            df, dk, v, w = yield from _step(F, pencil, L, Lk, L_kf, f, kappa, b, c)
         f, kappa = f + df, kappa + dk
         c, b = _unit(v), _unit(w)  # better borders: the current null vectors
         if abs(df) <= FOLD_TOL * max(abs(f), 1e-300) and abs(dk) <= FOLD_TOL * abs(kappa):
@@ -82,14 +147,14 @@ def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray
 
 
 def _step(F, pencil: SlidingPencil, L, Lk, L_kf, f: float, kappa: float, b: np.ndarray,
-          c: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
+          c: np.ndarray):
     """One Newton step on (sigma, sigma_kappa) = 0 at L = L(f, kappa), Lk = dL/dkappa:
-    (df, dkappa) and the null vectors v, w."""
+    (df, dkappa) and the null vectors v, w (a generator, as :func:`_newton`)."""
     n = pencil.size
     F.set(L, b, c)
     e = np.zeros(n + 1)
     e[n] = 1.0
-    vs, ws = F.solve_many([(e, False), (e, True)])
+    vs, ws = yield F, [(e, False), (e, True)], False
     v, sigma, w = vs[:n], vs[n], ws[:n]
     Lf = pencil.L_f(kappa)
     Lkv, Lfv = Lk @ v, Lf @ v
@@ -99,9 +164,9 @@ def _step(F, pencil: SlidingPencil, L, Lk, L_kf, f: float, kappa: float, b: np.n
         return np.concatenate([x, [0.0]])
 
     # v_kappa, v_f, w_kappa, w_f: only the Jacobian's
-    v_k, v_f, w_k, w_f = (x[:n] for x in F.solve_many(
-        [(bordered_rhs(-Lkv), False), (bordered_rhs(-Lfv), False),
-         (bordered_rhs(-(Lk.T @ w)), True), (bordered_rhs(-(Lf.T @ w)), True)], rough=True))
+    v_k, v_f, w_k, w_f = (x[:n] for x in (yield F, [
+        (bordered_rhs(-Lkv), False), (bordered_rhs(-Lfv), False),
+        (bordered_rhs(-(Lk.T @ w)), True), (bordered_rhs(-(Lf.T @ w)), True)], True))
     s_kk = -(w_k @ Lkv + w @ (Lk @ v_k))
     s_kf = -(w_f @ Lkv + w @ (L_kf @ v) + w @ (Lk @ v_f))
     J = np.array([[s_f, s_k], [s_kf, s_kk]])

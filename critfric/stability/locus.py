@@ -1,7 +1,7 @@
 """The root locus: the lowest eigenvalues kappa of the sliding pencil followed along friction.
 
 A reduced model locates the thresholds, enlarged at each one until its coalescence stops
-moving (:func:`sharpen`); :mod:`.fold` then confirms them on the full pencil.
+moving (:mod:`.sharpen`); :mod:`.fold` then confirms them on the full pencil.
 The reduced basis holds the constrained free-vibration modes (the exact friction-0 modes, so
 the friction-0 frequencies are exact) and the static responses of the kept DOFs to
 tangential contact loads and to the normal reaction rows (the right and left null vectors of
@@ -27,8 +27,8 @@ from threadpoolctl import ThreadpoolController, threadpool_limits
 from ..errors import SolverError
 from ..solvers.backends import PardisoPlan, factorize
 from ..solvers.pardiso import upper_triangle
-from . import fold, lanczos
-from .bordered import RANK_TOL, orthonormal
+from . import lanczos
+from .bordered import orthonormal
 from .pencil import SlidingPencil
 
 FULL_MAX = 80  # kept DOFs up to which the full pencil is followed densely (QZ per step)
@@ -48,10 +48,6 @@ MODES_TOL = 1e-10  # relative tolerance on the followed free vibrations: ARPACK 
 BASIS_TOL = 1e-4  # ... on the further modes of the basis (Lanczos; ARPACK has one tolerance
 # for all): they enter the reduced model's span, not its results; branches within 3e-6 of
 # those with every mode at MODES_TOL, 52 solves for 10 + 10 modes instead of 62 (295 k DOFs)
-SHARPEN_ROUNDS = 8  # at most this many enlargements of the reduced model at a coalescence
-SHARPEN_TOL = 1e-7  # ... until its coalescence moves by less than this (relative): each round
-# shrinks the move 300-600 times (7.7e-4, 4.4e-6, 1.3e-8, 1.9e-11 at 295 k DOFs), so the
-# guess is then within ~1e-10 and the full pencil's Newton stops after one step
 
 
 def blas_threads(count: int):
@@ -170,27 +166,12 @@ class Block:
                 np.concatenate([W[self.cols].T @ bTN for W in Ws]), N[self.rows].T @ bN)
 
 
-def _borders(blocks: list[Block], Ws: list[np.ndarray], N: np.ndarray) -> list[tuple]:
-    """:meth:`Block.borders` of every block, W^T (b N) of the symmetric blocks without few
-    rows (K_rr, M_rr) as one product a W: V (n x 80 at 295 k DOFs) read once for both."""
-    whole = [b for b in blocks if b.sub is None and b.symmetric]
-    if len(whole) < 2:
-        return [b.borders(Ws, N) for b in blocks]
-    k = N.shape[1]
-    bN = np.hstack([b.b @ N for b in whole])
-    right = np.concatenate([W.T @ bN for W in Ws])
-    done = {id(b): (right[:, i * k:(i + 1) * k], N.T @ bN[:, i * k:(i + 1) * k])
-            for i, b in enumerate(whole)}
-    return [(done[id(b)][0], done[id(b)][0], done[id(b)][1]) if id(b) in done
-            else b.borders(Ws, N) for b in blocks]
-
-
 def _matrices(pencil: SlidingPencil) -> tuple:
     """The sparse blocks of the pencil, L = (A0 - f A1) - kappa (B0 - f B1): A0, A1, B0, B1."""
     return pencil.Krr, pencil.GKnr, pencil.Mrr, pencil.GMnr
 
 
-def _blocks(pencil: SlidingPencil) -> list[Block]:
+def blocks_of(pencil: SlidingPencil) -> list[Block]:
     """:func:`_matrices` with their projections (A0 and B0 symmetric)."""
     return [Block(b, symmetric) for b, symmetric in zip(_matrices(pencil),
                                                          (True, False, True, False))]
@@ -247,7 +228,7 @@ def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str) -> Reduced:
         low = vecs[:, :corrected]
         loads = [pencil.GKnr @ low, pencil.GMnr @ low, pencil.GKnr.T @ low, pencil.GMnr.T @ low]
     V = orthonormal(np.column_stack([vecs, factor.solve(np.column_stack(loads))]))
-    A0, A1, B0, B1 = (b.form(V, V) for b in _blocks(pencil))
+    A0, A1, B0, B1 = (b.form(V, V) for b in blocks_of(pencil))
     return Reduced(V, A0, A1, B0, B1, w, vecs)
 
 
@@ -375,80 +356,3 @@ def locate_flutter(red: Reduced, branches: Branches) -> Guess | None:
     a = (red.A0 - f0 * red.A1) - k0 * (red.B0 - f0 * red.B1)
     U, _, Vt = la.svd(a)
     return Guess(float(f0), float(k0), red.lift(Vt[-1]), red.lift(U[:, -1]), branch)
-
-
-def sharpen(red: Reduced, pencil: SlidingPencil, factor, guess: Guess) -> Guess:
-    """The coalescence of the reduced model found exactly (:func:`fold.find_fold` on the
-    small pencil), then the model enlarged by K_rr^-1 of the full pencil's residuals L v,
-    L^T w of its null vectors and of B v, B^T w (its Jordan direction), and found again,
-    round after round (one solve of 4 columns each), until it moves by less than
-    SHARPEN_TOL: a guess whose first Newton correction on the full pencil is already below
-    Newton's tolerance (one step). ``factor``: a factorization of K_rr. At most
-    4 SHARPEN_ROUNDS columns are added. A model on the full space (small problems) is exact:
-    its guess is returned as it is."""
-    if red.V is None:
-        return guess
-    with threadpool_limits(1, user_api="blas"):
-        return _sharpen(red, pencil, factor, guess)
-
-
-def _sharpen(red: Reduced, pencil: SlidingPencil, factor, guess: Guess) -> Guess:
-    blocks = _blocks(pencil)
-    V, m = red.V, red.V.shape[1]
-    T = np.empty((len(V), 4 * SHARPEN_ROUNDS))  # the added columns, orthonormal to V's
-    t = 0  # columns of T in use
-    mats = [red.A0, red.A1, red.B0, red.B1]
-    f, kappa = guess.friction, guess.kappa
-    y, z = V.T @ guess.right, V.T @ guess.left
-
-    def lift(Y):  # reduced coordinates -> kept DOFs
-        return V @ Y[:m] + T[:, :t] @ Y[m:]
-
-    for rnd in range(SHARPEN_ROUNDS + 1):
-        d = len(mats[0])
-        small = SlidingPencil(system=None, state=None, kept=np.arange(d), slip=np.arange(d),
-                              Krr=sp.csr_matrix(mats[0]), Mrr=sp.csr_matrix(mats[2]),
-                              Knr=sp.csr_matrix(mats[1]), Mnr=sp.csr_matrix(mats[3]),
-                              G=sp.identity(d, format="csr"))
-        try:
-            found = fold.find_fold(small, f, kappa, y, z)
-        except SolverError:  # the full pencil's Newton starts from the last good point
-            break
-        still = (abs(found.friction - f) <= SHARPEN_TOL * abs(found.friction)
-                 and abs(found.kappa - kappa) <= SHARPEN_TOL * abs(found.kappa))
-        f, kappa, y, z = found.friction, found.kappa, found.right, found.left
-        if (rnd and still) or rnd == SHARPEN_ROUNDS:
-            break
-        v, w = lift(np.column_stack([y, z])).T
-        Bv, BTw = pencil.apply_B(f, v), pencil.apply_B(f, w, transpose=True)
-        Lv = pencil.apply_A(f, v) - kappa * Bv
-        LTw = pencil.apply_A(f, w, transpose=True) - kappa * BTw
-        new = _outside(V, T[:, :t], factor.solve(np.column_stack([Lv, LTw, Bv, BTw])))
-        k = new.shape[1]
-        if k == 0:
-            break
-        # W' = [W, N] (W = [V, T]): W'^T b W' from W^T b W, the borders W^T b N, W^T b^T N
-        edges = _borders(blocks, [V, T[:, :t]], new)
-        mats = [np.block([[mat, right], [below.T, corner]])
-                for mat, (right, below, corner) in zip(mats, edges)]
-        T[:, t:t + k] = new
-        t += k
-        y, z = np.concatenate([y, np.zeros(k)]), np.concatenate([z, np.zeros(k)])
-    r, lft = lift(np.column_stack([y, z])).T
-    return Guess(float(f), float(kappa), r, lft, guess.branch)
-
-
-def _outside(V: np.ndarray, T: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """An orthonormal basis of the part of X's span outside that of the orthonormal columns
-    of V and T: X projected out, once more if that cancelled more than 99 % of a column
-    ("twice is enough"; once, the sharpened coalescence of the unit square at h = 0.05 was
-    1.9e-9 from the full pencil's instead of 9e-13, and Newton took two steps); columns left
-    with less than RANK_TOL of their norm dropped."""
-    before = np.linalg.norm(X, axis=0)
-    X = X - V @ (V.T @ X) - T @ (T.T @ X)
-    after = np.linalg.norm(X, axis=0)
-    if np.any(after < 0.01 * before):
-        X = X - V @ (V.T @ X) - T @ (T.T @ X)
-        after = np.linalg.norm(X, axis=0)
-    keep = after > RANK_TOL * np.maximum(before, 1e-300)
-    return orthonormal(X[:, keep]) if keep.any() else X[:, :0]

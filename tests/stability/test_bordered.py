@@ -10,6 +10,7 @@ from helpers import case_pencil
 
 from critfric.case.schema import load_case
 from critfric.stability import bordered, fold, locus
+from critfric.stability.sharpen import sharpen
 
 
 @pytest.fixture(scope="module")
@@ -19,7 +20,7 @@ def sharpened():
     factor = locus.factor_of(pencil, "scipy", None)
     red = locus.reduce(pencil, 6, factor=factor)
     guess = locus.locate_flutter(red, locus.follow(red, 6, np.linspace(0, 2.0, 201)))
-    return pencil, factor, red, locus.sharpen(red, pencil, factor, guess)
+    return pencil, factor, red, sharpen(red, pencil, factor, [guess])[0]
 
 
 def _unit(x):
@@ -89,3 +90,55 @@ def test_from_a_raw_guess_newton_on_deflated_solves_converges(sharpened):
     assert isinstance(deflated.solver, bordered.Deflated) and deflated.steps >= 2
     assert deflated.friction == pytest.approx(on_lu.friction, rel=1e-11)
     assert deflated.friction == pytest.approx(sharp.friction, rel=1e-7)
+
+
+class _Counting:
+    """A factorization that counts its solve calls."""
+
+    def __init__(self, factor):
+        self.factor, self.calls = factor, 0
+
+    def solve(self, b):
+        self.calls += 1
+        return self.factor.solve(b)
+
+
+@pytest.fixture(scope="module")
+def both_ways(sharpened):
+    """The sharpened onsets of both directions, as starts (f, kappa, right, left)."""
+    pencil, factor, red, _ = sharpened
+    guesses = [locus.locate_flutter(red, locus.follow(red, 6, np.linspace(0, end, 201)))
+               for end in (-2.0, 2.0)]
+    return [(s.friction, s.kappa, s.right, s.left)
+            for s in sharpen(red, pencil, factor, guesses)]
+
+
+def test_both_directions_in_lockstep_land_where_each_alone_does(sharpened, both_ways):
+    pencil, factor, red, _ = sharpened
+    alone_factor, joint_factor = _Counting(factor), _Counting(factor)
+    D = bordered.Deflated(alone_factor, red.modes0)
+    alone = [fold.find_fold(pencil, *start, solver=D) for start in both_ways]
+    D = bordered.Deflated(joint_factor, red.modes0)
+    together = fold.find_folds(pencil, both_ways, solver=D)
+    assert together[0].solver is D and together[1].solver.factor is joint_factor
+    assert together[0].friction < 0 < together[1].friction
+    for one, joint in zip(alone, together):
+        assert joint.steps == one.steps == 1
+        assert joint.friction == pytest.approx(one.friction, rel=1e-12)
+        assert joint.kappa == pytest.approx(one.kappa, rel=1e-12)
+    # each GMRES iteration's solves of both directions in one call
+    assert 0 < joint_factor.calls < alone_factor.calls
+
+
+def test_a_stall_in_lockstep_hands_over_to_one_after_the_other(sharpened, both_ways,
+                                                               monkeypatch):
+    pencil, factor, red, _ = sharpened
+    on_lu = fold.find_folds(pencil, both_ways)
+    monkeypatch.setattr(bordered, "GMRES_MAX", 0)
+    D = bordered.Deflated(factor, red.modes0)
+    found = fold.find_folds(pencil, both_ways, solver=D)
+    assert D.factor is None  # released before the first LU was made
+    assert found[1].solver is found[0].solver  # the LU's analysis passed on
+    assert isinstance(found[0].solver, bordered.Bordered)
+    for lu, one in zip(on_lu, found):
+        assert one.friction == pytest.approx(lu.friction, rel=1e-12)

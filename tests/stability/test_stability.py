@@ -18,6 +18,7 @@ from critfric.fem.assembly import assemble_mass, lame
 from critfric.solve import prepare, solve_case
 from critfric.stability import analysis, fold, locus, stability_case
 from critfric.stability.pencil import SlidingPencil
+from critfric.stability.sharpen import sharpen
 
 
 # ----------------------------------------------------------------- a two-DOF closed form
@@ -283,7 +284,7 @@ def test_sharpened_guess_needs_one_newton_step(square, square_pencil):
     assert result.newton_steps == {"positive": 1, "negative": 1}
     red = locus.reduce(pencil, 6)
     guess = locus.locate_flutter(red, locus.follow(red, 6, np.linspace(0, 2.0, 201)))
-    sharp = locus.sharpen(red, pencil, locus.factor_of(pencil, "scipy", None), guess)
+    sharp = sharpen(red, pencil, locus.factor_of(pencil, "scipy", None), [guess])[0]
     assert abs(guess.friction - result.flutter["positive"]) > 1e-7  # the model alone: off
     assert sharp.friction == pytest.approx(result.flutter["positive"], rel=1e-9)
     found = fold.find_fold(pencil, sharp.friction, sharp.kappa, sharp.right, sharp.left)
