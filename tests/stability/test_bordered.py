@@ -142,3 +142,17 @@ def test_a_stall_in_lockstep_hands_over_to_one_after_the_other(sharpened, both_w
     assert isinstance(found[0].solver, bordered.Bordered)
     for lu, one in zip(on_lu, found):
         assert one.friction == pytest.approx(lu.friction, rel=1e-12)
+
+
+def test_orthonormal_bases_of_nearly_dependent_columns():
+    """Columns of condition ~1e6 (and one exactly dependent, dropped): one Gram pass leaves
+    them orthonormal to ~1e-16 cond^2 only; the basis is orthonormal to rounding and spans
+    the columns."""
+    rng = np.random.default_rng(7)
+    A = rng.standard_normal((5000, 6))
+    W = np.column_stack([A, A[:, :3] + 1e-6 * rng.standard_normal((5000, 3)), A[:, 0] + A[:, 1]])
+    Q = bordered.orthonormal(W)
+    assert Q.shape == (5000, 9)  # the exactly dependent column dropped
+    np.testing.assert_allclose(Q.T @ Q, np.eye(9), atol=1e-12)
+    residual = W - Q @ (Q.T @ W)
+    assert np.abs(residual).max() <= 1e-10 * np.abs(W).max()
