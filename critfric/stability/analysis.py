@@ -158,17 +158,18 @@ def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
     modes = min(st["modes"], len(kept))
     _check_work(st["steps"], locus.reduced_size(len(kept), len(slip), modes), modes,
                 case.source)  # before any factorization
-    K = Krr = order = one = None
+    K = system.stiffness(*lame(1.0, nu))
+    Krr = K[kept][:, kept].tocsr()
+    order = one = None
     if shared.applies(system, state, s["method"], backend) and len(kept) > locus.FULL_MAX:
         # SciPy: one factorization of K_rr serves the static stage too (:mod:`.shared`)
-        K = system.stiffness(*lame(1.0, nu))
-        Krr = K[kept][:, kept].tocsr()
         order = fill_order(system, kept)
         one = shared.SharedFactor.of(K, Krr, Problem(K, system, state), kept, order)
-    static = eigen.solve(system.stiffness(*lame(1.0, nu), keep_zeros=plan is not None)
-                         if K is None else K, system, state, method=s["method"], count=1,
-                         tol=s["tol"], maxiter=s["maxiter"], real_tol=s["real_tol"],
-                         backend=backend, plan=plan, made=one)
+    # PARDISO's analysis started in prepare: K with its pattern's zero entries
+    static = eigen.solve(K if plan is None else system.stiffness(*lame(1.0, nu), keep_zeros=True),
+                         system, state, method=s["method"], count=1, tol=s["tol"],
+                         maxiter=s["maxiter"], real_tol=s["real_tol"], backend=backend,
+                         plan=plan, made=one)
     divergence = {"positive": float(static.positive[0]) if len(static.positive) else None,
                   "negative": float(static.negative[0]) if len(static.negative) else None}
     t1 = time.perf_counter()
@@ -177,9 +178,6 @@ def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
     # solved at E = density = 1 and the body's extent ell = 1 (M / ell^2): the thresholds do
     # not depend on them, kappa = omega^2 scales as E / (density ell^2)
     ell = float(np.ptp(prep.mesh.points, axis=0).max())
-    if K is None:
-        K = system.stiffness(*lame(1.0, nu))
-        Krr = K[kept][:, kept].tocsr()
     krr_plan = None if one else locus.plan_of(Krr, backend)  # beside the mass assembly
     if krr_plan is not None:
         threads.callback(krr_plan.close)
@@ -219,17 +217,15 @@ def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
             continue
         guesses[direction] = guess
     # both directions' sharpening rounds in lockstep (one solve with K_rr a round)
-    guesses = dict(zip(guesses, zip(guesses.values(),
-                                    sharpen(red, pencil, factor, list(guesses.values())))))
+    sharp = dict(zip(guesses, sharpen(red, pencil, factor, list(guesses.values()))))
     # Newton's bordered solves on K_rr's factorization (freed if they fall back on an LU),
     # both directions' in lockstep
     solver = None if factor is None else Deflated(factor, red.modes0)
     factor = None
     t4 = time.perf_counter()
-    starts = [(sharp.friction, sharp.kappa, sharp.right, sharp.left)
-              for _, sharp in guesses.values()]
+    starts = [(g.friction, g.kappa, g.right, g.left) for g in sharp.values()]
     founds = fold.find_folds(pencil, starts, backend=backend, order=order, solver=solver)
-    for (direction, (guess, _)), found in zip(guesses.items(), founds):
+    for (direction, guess), found in zip(guesses.items(), founds):
         if abs(found.friction - guess.friction) > 1e-3 * abs(guess.friction):
             warnings.append(f"the {direction} flutter onset moved from {guess.friction:.6g} "
                             f"(reduced model) to {found.friction:.6g} on the full pencil; "

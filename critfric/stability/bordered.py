@@ -18,6 +18,7 @@ rounding.
 from __future__ import annotations
 
 import itertools
+from typing import NamedTuple
 
 import numpy as np
 import scipy.linalg as la
@@ -209,24 +210,35 @@ def solve_jointly(groups: list[tuple[Deflated, list[tuple[np.ndarray, bool]], bo
         runs = [F._solve(u, transpose, rough) for F, systems, rough in groups
                 for u, transpose in systems]
         out: list = [None] * len(runs)
-        wanted = {i: _advance(run, None, out, i) for i, run in enumerate(runs)}
-        wanted = {i: u for i, u in wanted.items() if u is not None}
-        while wanted:
-            y = factor.solve(np.column_stack(list(wanted.values())))
-            sent = {i: _advance(runs[i], y[:, j], out, i) for j, i in enumerate(wanted)}
-            wanted = {i: u for i, u in sent.items() if u is not None}
+        pending = [(i, resume(run)) for i, run in enumerate(runs)]
+        while True:
+            for i, got in pending:
+                if isinstance(got, Done):
+                    out[i] = got.value
+            pending = [(i, u) for i, u in pending if not isinstance(u, Done)]
+            if not pending:
+                break
+            y = factor.solve(np.column_stack([u for _, u in pending]))
+            pending = [(i, resume(runs[i], y[:, j])) for j, (i, _) in enumerate(pending)]
     ends = np.cumsum([0] + [len(systems) for _, systems, _ in groups])
     return [out[a:b] for a, b in itertools.pairwise(ends)]
 
 
-def _advance(run, value, out: list, i: int) -> np.ndarray | None:
-    """Run a solve to its next solve with K_rr (its right-hand side), sending it ``value``
-    (None: start it); None once it is done (its solution in out[i])."""
+class Done(NamedTuple):
+    """What a generator run returned (:func:`resume`)."""
+
+    value: object
+
+
+def resume(run, value=None):
+    """A generator run's next request: started (``value`` None), sent ``value``, or thrown
+    it (an exception); Done(what it returned) once it returns."""
     try:
-        return next(run) if value is None else run.send(value)
+        if value is None:
+            return next(run)
+        return run.throw(value) if isinstance(value, BaseException) else run.send(value)
     except StopIteration as done:
-        out[i] = done.value
-        return None
+        return Done(done.value)
 
 
 class Bordered:

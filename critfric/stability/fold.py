@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SolverError
-from .bordered import Bordered, Deflated, NotConverged, solve_jointly
+from .bordered import Bordered, Deflated, Done, NotConverged, resume, solve_jointly
 from .pencil import SlidingPencil
 
 FOLD_TOL = 1e-9  # relative Newton step after which the coalescence is converged: the
@@ -56,17 +56,15 @@ def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray
     None: :class:`Bordered`."""
     F = Bordered(backend, order) if solver is None else solver.renewed()
     run = _newton(pencil, f0, kappa0, right, left, F, backend, order)
-    request = next(run)
-    while True:
+    request = resume(run)
+    while not isinstance(request, Done):
         F, systems, rough = request
         try:
             solved = F.solve_many(systems, rough)
         except NotConverged as stalled:
-            request = _resume(run, stalled)
-        else:
-            request = _resume(run, solved)
-        if isinstance(request, Fold):
-            return request
+            solved = stalled  # thrown into the run: it factors the bordered matrix
+        request = resume(run, solved)
+    return request.value
 
 
 def find_folds(pencil: SlidingPencil, starts: list[tuple], *, backend: str = "scipy",
@@ -91,27 +89,18 @@ def _lockstep(pencil: SlidingPencil, starts: list[tuple], solver: Deflated, back
               order) -> list[Fold]:
     runs = [_newton(pencil, *start, solver if i == 0 else solver.sibling(), backend, order)
             for i, start in enumerate(starts)]
-    requests = {i: next(run) for i, run in enumerate(runs)}
+    requests = {i: resume(run) for i, run in enumerate(runs)}
     found: list = [None] * len(runs)
     while requests:
         solved = solve_jointly(list(requests.values()))  # NotConverged: given up
         for (i, _), x in zip(list(requests.items()), solved):
-            request = _resume(runs[i], x)
-            if isinstance(request, Fold):
-                found[i] = request
+            request = resume(runs[i], x)
+            if isinstance(request, Done):
+                found[i] = request.value
                 del requests[i]
             else:
                 requests[i] = request
     return found
-
-
-def _resume(run, value):
-    """Send a Newton run its solutions (or throw NotConverged into it): its next request,
-    or its Fold once done."""
-    try:
-        return run.throw(value) if isinstance(value, NotConverged) else run.send(value)
-    except StopIteration as done:
-        return done.value
 
 
 def _newton(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
