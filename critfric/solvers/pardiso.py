@@ -2,7 +2,11 @@
 critfric[fast]``): METIS ordering, Cholesky-class (mtype 2) or general (mtype 11)
 factorization, the Schur complement computed during the factorization itself (iparm[35] = 2),
 solves without PARDISO's default iterative refinement; and :class:`PardisoPlan`, the analysis
-started from the pattern alone, in a thread, while the values are still being computed.
+started from the pattern alone while the values are still being computed.
+
+Every MKL call of the process runs in one thread, :data:`MKL_THREAD`, kept for the process's
+life: a handle analysed with Schur rows in one thread and factored in another corrupted the
+heap (the next analysis segfaulted, or glibc aborted).
 """
 
 from __future__ import annotations
@@ -12,9 +16,12 @@ import ctypes
 import functools
 import importlib.metadata
 import importlib.util
+import os
+import queue
 import threading
 import weakref
 from collections.abc import Callable
+from concurrent.futures import Future
 from typing import NamedTuple
 
 import numpy as np
@@ -122,7 +129,8 @@ class PardisoFactor:
         self.shape = (n, n)
         self._pt = np.zeros(64, dtype=np.int64)
         self._iparm = np.zeros(64, dtype=np.int32)
-        lib.init(self._pt.ctypes.data, _int(self.mtype), self._iparm.ctypes.data_as(_I32))
+        MKL_THREAD.call(lib.init, self._pt.ctypes.data, _int(self.mtype),
+                        self._iparm.ctypes.data_as(_I32))
         self._iparm[0] = 1   # iparm given
         self._iparm[1] = 2   # METIS nested dissection
         self._iparm[7] = 0   # no iterative refinement beyond what perturbed pivots ask for
@@ -175,6 +183,8 @@ class PardisoFactor:
         complement (symmetric): the forward substitution (phase 331) leaves the reduced
         right-hand side on the Schur rows, S solves them, the backward one (333) the rest."""
         b = np.asarray(b, dtype=np.float64)
+        if b.shape[0] != self.shape[0] or b.ndim > 2:  # PARDISO would read and write past b
+            raise ValueError(f"right-hand sides of shape {b.shape} for {self.shape[0]} rows")
         if self._index is None and b.ndim == 2:  # blocks of columns, into one column-major x
             out = np.empty_like(b, order="F")
             step = 1 if b.shape[1] < SOLVE_ALONE else SOLVE_BLOCK
@@ -231,26 +241,17 @@ class PardisoFactor:
 class PardisoPlan:
     """PARDISO's analysis (phase 11) of a symmetric positive definite matrix, with Schur rows
     ``index`` if given, from its upper-triangle pattern alone (sorted CSR ``indptr``,
-    ``indices``), run in a background thread while the caller computes the values: METIS is
+    ``indices``), run in :data:`MKL_THREAD` while the caller computes the values: METIS is
     sequential (~half of a factorization at 1 M rows), so the other cores work meanwhile.
     :meth:`schur` (with Schur rows) or :meth:`factor` (without) finishes it on a matrix of
     that pattern, once; :meth:`close` waits for an analysis that will not be used (its
-    owner's ``finally``: no thread outlives the call that started it)."""
+    owner's ``finally``: no analysis outlives the call that started it)."""
 
     def __init__(self, indptr: np.ndarray, indices: np.ndarray, index: np.ndarray | None = None):
         self._factor = PardisoFactor.__new__(PardisoFactor)
         self._factor._setup(indptr, indices, symmetric=True)  # the caller's thread count
         self._index = None if index is None else np.asarray(index, dtype=np.int64)
-        self._error = None
-        self._thread = threading.Thread(target=self._run, args=(self._factor,),
-                                        name="critfric-pardiso-analysis", daemon=True)
-        self._thread.start()
-
-    def _run(self, factor: PardisoFactor) -> None:
-        try:
-            factor._analyse(self._index)
-        except BaseException as exc:  # noqa: BLE001 - handed over to the caller's thread
-            self._error = exc
+        self._analysis = MKL_THREAD.submit(self._factor._analyse, self._index)
 
     def schur(self, A: sp.spmatrix, index: np.ndarray) -> PardisoFactor | None:
         """The :class:`PardisoFactor` of A with Schur rows ``index``, or None if A's upper
@@ -265,7 +266,7 @@ class PardisoPlan:
     def close(self) -> None:
         """Wait for the analysis and drop it (released with its factor); idempotent."""
         self._factor = None
-        self._thread.join()
+        self._analysis.exception()  # waits; an error of an unused analysis is dropped
 
     def _finish(self, A: sp.spmatrix, index: np.ndarray | None) -> PardisoFactor | None:
         factor, self._factor = self._factor, None
@@ -279,9 +280,8 @@ class PardisoPlan:
                 return None
             _check_diagonal(A)
         finally:
-            self._thread.join()  # used or not: no analysis outlives its plan's use
-        if self._error is not None:
-            raise self._error
+            self._analysis.exception()  # used or not: no analysis outlives its plan's use
+        self._analysis.result()  # its error, if any
         factor._numeric(U.data)
         return factor
 
@@ -323,18 +323,92 @@ def _int(value: int):
     return ctypes.byref(ctypes.c_int32(value))
 
 
-#: every MKL PARDISO call, the finalizers' releases included, one at a time: a factor freed
-#: by the cyclic garbage collector is released in whatever thread the collection ran (pytest
-#: workers' I/O threads, a user's threads), possibly during another factor's call; a full
-#: suite under pytest -n 2 aborted twice in phase 12 with a corrupted heap
-_MKL_LOCK = threading.RLock()
+class OneThread:
+    """One daemon thread, started on first use and kept, that runs the functions given to it
+    one at a time, in order; a call from within it runs at once (a finalizer run by the
+    garbage collector there). A forked child starts its own."""
+
+    def __init__(self, name: str):
+        self._name = name
+        self._start = threading.Lock()
+        self._thread: threading.Thread | None = None
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._waiting = 0  # calls queued or running
+        os.register_at_fork(after_in_child=self._forget)
+
+    def submit(self, fn: Callable, *args) -> Future:
+        """fn(*args) queued; its future."""
+        future: Future = Future()
+        if threading.current_thread() is self._thread:
+            _settle(future, *_run(fn, args))
+            return future
+        with self._start:
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._serve, name=self._name,
+                                                daemon=True)
+                self._thread.start()
+            self._waiting += 1
+        self._queue.put((future, fn, args))
+        return future
+
+    @property
+    def idle(self) -> bool:
+        """Nothing queued or running."""
+        return self._waiting == 0
+
+    def call(self, fn: Callable, *args):
+        """fn(*args) run in the thread; its value (or its exception, raised here)."""
+        return self.submit(fn, *args).result()
+
+    def _serve(self) -> None:
+        while True:
+            future, fn, args = self._queue.get()
+            outcome = _run(fn, args)
+            with self._start:  # counted done before the waiting caller wakes
+                self._waiting -= 1
+            _settle(future, *outcome)
+            del future, fn, args, outcome  # the arrays of a call live no longer than it
+
+    def _forget(self) -> None:
+        self._start, self._thread, self._waiting = threading.Lock(), None, 0
+        self._queue = queue.SimpleQueue()
+
+
+def _run(fn: Callable, args: tuple) -> tuple:
+    try:
+        return fn(*args), None
+    except BaseException as exc:  # noqa: BLE001 - raised in the waiting thread
+        return None, exc
+
+
+def _settle(future: Future, value, error: BaseException | None) -> None:
+    if error is None:
+        future.set_result(value)
+    else:
+        future.set_exception(error)
+
+
+#: the thread of every MKL call, the finalizers' releases included (a factor freed by the
+#: cyclic garbage collector is released in whatever thread the collection ran): a handle
+#: analysed with Schur rows (iparm[35] = 2) in one thread and factored and solved in another
+#: corrupted MKL's heap; the next analysis segfaulted (permutetips) or glibc aborted
+#: ("corrupted size vs. prev_size") in 4-11 of 30 runs of a stability run followed by
+#: sweeps, 0 of 40 with every call in this thread
+MKL_THREAD = OneThread("critfric-mkl")
 
 
 def _run_phase(lib: Library, threads: int, pt, mtype: int, phase: int, a, ia, ja, perm,
                nrhs: int, iparm, b, x) -> int:
-    """One PARDISO call (under the lock, with ``threads`` MKL threads); its error code."""
+    """One PARDISO call (in :data:`MKL_THREAD`, with ``threads`` MKL threads); its error
+    code."""
+    return MKL_THREAD.call(_phase, lib, threads, pt, mtype, phase, a, ia, ja, perm, nrhs,
+                           iparm, b, x)
+
+
+def _phase(lib: Library, threads: int, pt, mtype: int, phase: int, a, ia, ja, perm,
+           nrhs: int, iparm, b, x) -> int:
     err = ctypes.c_int32(0)
-    with _MKL_LOCK, _pinned(lib, threads):
+    with _pinned(lib, threads):
         lib.pardiso(pt.ctypes.data, _int(1), _int(1), _int(mtype), _int(phase),
                     _int(len(ia) - 1), a.ctypes.data, ia.ctypes.data_as(_I32),
                     ja.ctypes.data_as(_I32), perm.ctypes.data_as(_I32), _int(nrhs),
