@@ -405,7 +405,7 @@ def test_stiffness_pattern_is_known_before_its_values(element):
 @pytest.mark.skipif("pardiso" not in AVAILABLE,
                     reason="backend 'pardiso' not installed (pip install critfric[fast])")
 def test_pardiso_analysis_started_from_the_pattern_gives_the_same_factorization():
-    """A PardisoPlan (phase 11 in a thread from the pattern, phase 22 on the values later)
+    """A PardisoPlan (phase 11 in the MKL thread from the pattern, phase 22 on the values later)
     gives PardisoFactor's S and extensions; a plan of another pattern or index is declined
     (None: the caller factors afresh), a plan serves once, and solve_case uses one."""
     prep = prepare(loads_case(square_case(element="P1", size=0.1)))
@@ -477,7 +477,7 @@ def test_solve_case_overlaps_the_analysis_and_gives_the_same_result(element, mon
 @pytest.mark.skipif("pardiso" not in AVAILABLE,
                     reason="backend 'pardiso' not installed (pip install critfric[fast])")
 def test_pardiso_phases_keep_one_thread_count_whatever_the_caller_sets():
-    """A plan's analysis runs in its own thread, and callers change MKL's threads between
+    """Every PARDISO call runs in the MKL thread, and callers change MKL's threads between
     calls (threadpoolctl, as sweeps run in-process do). Phase 22 with another count than
     phase 11 gave a Schur complement off by 100% (P1 at 3 856 DOFs) or a segfault (Q2)."""
     from threadpoolctl import threadpool_limits
