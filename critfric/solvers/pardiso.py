@@ -334,7 +334,8 @@ class OneThread:
         self._thread: threading.Thread | None = None
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._waiting = 0  # calls queued or running
-        os.register_at_fork(after_in_child=self._forget)
+        if hasattr(os, "register_at_fork"):  # POSIX
+            os.register_at_fork(after_in_child=self._forget)
 
     def submit(self, fn: Callable, *args) -> Future:
         """fn(*args) queued; its future."""
