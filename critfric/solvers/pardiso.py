@@ -325,8 +325,8 @@ def _int(value: int):
 
 class OneThread:
     """One daemon thread, started on first use and kept, that runs the functions given to it
-    one at a time, in order; a call from within it runs at once (a finalizer run by the
-    garbage collector there). A forked child starts its own."""
+    one at a time, in order; a call from within it (one those functions make, a finalizer
+    the garbage collector runs there) runs at once. A forked child starts its own."""
 
     def __init__(self, name: str):
         self._name = name
@@ -394,7 +394,7 @@ def _settle(future: Future, value, error: BaseException | None) -> None:
 #: analysed with Schur rows (iparm[35] = 2) in one thread and factored and solved in another
 #: corrupted MKL's heap; the next analysis segfaulted (permutetips) or glibc aborted
 #: ("corrupted size vs. prev_size") in 4-11 of 30 runs of a stability run followed by
-#: sweeps, 0 of 40 with every call in this thread
+#: sweeps, 0 of 120 with every call in this thread
 MKL_THREAD = OneThread("critfric-mkl")
 
 
