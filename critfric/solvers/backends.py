@@ -25,12 +25,15 @@ Backends (``BACKENDS``; ``"auto"`` takes the first available of ``PREFERENCE``):
 
 from __future__ import annotations
 
+import functools
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from threadpoolctl import ThreadpoolController
 
 from ..errors import SolverError
 from ..guards import SPLIT_MIN_ROWS, usable_cpus
@@ -46,6 +49,12 @@ BACKENDS = ("scipy", "pardiso")
 #: 8.6 GB substructured; at k = 2367, 20 k DOFs, 3.9 against 7.0 s)
 SPLIT_MIN_SCHUR = 4000
 SPLIT_WORKERS = 2  # pieces factored at once (threads; at most the CPUs this process may use)
+#: a SuperLU solve of many right-hand sides shares them among threads (:func:`_superlu_solve`),
+#: SOLVE_PART columns at least each, from SOLVE_SPLIT_ROWS rows on. K_rr of the P1 unit square
+#: on 2 cores, ms a column, shared against one call (the best of 5): 295 k rows, 16 columns
+#: 16.8 against 23.8, 60 columns 14.5 against 20.7 (8 columns 26.9 against 25.3); 50 k rows,
+#: 16 columns 2.6 against 3.5; 24 k rows, 16 columns 1.5 against 1.5
+SOLVE_PART, SOLVE_SPLIT_ROWS = 8, 50_000
 REFINE_STEPS = 3  # ScipySchur.extend: refinement steps on the contact rows (1-2 are used)
 PREFERENCE = ("pardiso", "scipy")  # "auto": fastest first
 
@@ -93,7 +102,7 @@ class ScipyFactor:
         b = np.asarray(b, dtype=np.float64)
         trans = "T" if transpose else "N"
         if self._order is None:
-            return self._lu.solve(b, trans=trans)
+            return _superlu_solve(self._lu, b, trans)
         return _permuted_solve(self._lu, b, self._order, trans)
 
 
@@ -101,10 +110,41 @@ def _permuted_solve(lu, b: np.ndarray, order: np.ndarray, trans: str = "N") -> n
     """x with x[order] = lu.solve(b[order]): the rows gathered by ``np.take`` into the
     column-major array SuperLU reads (b[order] and a copy for SuperLU took 32 ms at 295 k
     rows and 4 columns, np.take 14 ms)."""
-    y = lu.solve(np.asfortranarray(np.take(b, order, axis=0)), trans=trans)
+    y = _superlu_solve(lu, np.asfortranarray(np.take(b, order, axis=0)), trans)
     x = np.empty_like(y)
     x[order] = y
     return x
+
+
+def _superlu_solve(lu, b: np.ndarray, trans: str = "N") -> np.ndarray:
+    """lu.solve(b); from the main thread, the columns of a large b shared among the usable
+    CPUs, SOLVE_PART at least each, OpenBLAS on one thread meanwhile: SuperLU's solve is
+    sequential, lets other threads run and solves each column on its own (to rounding: its
+    kernels differ with the number of columns); two OpenBLAS threads in each solve made it
+    1.5-2x slower."""
+    k = b.shape[1] if b.ndim == 2 else 1
+    parts = min(usable_cpus(), k // SOLVE_PART)
+    if (parts < 2 or b.shape[0] < SOLVE_SPLIT_ROWS
+            or threading.current_thread() is not threading.main_thread()):
+        return lu.solve(b, trans=trans)
+    ends = np.linspace(0, k, parts + 1).astype(int)
+    x = np.empty(b.shape, order="F")
+
+    def part(i: int) -> None:
+        x[:, ends[i]:ends[i + 1]] = lu.solve(b[:, ends[i]:ends[i + 1]], trans=trans)
+
+    with _openblas().limit(limits=1), ThreadPoolExecutor(parts - 1) as pool:
+        others = [pool.submit(part, i) for i in range(1, parts)]
+        part(0)
+        for other in others:
+            other.result()
+    return x
+
+
+@functools.cache
+def _openblas() -> ThreadpoolController:
+    """numpy's and SciPy's OpenBLAS (loaded by then: SuperLU's solve calls SciPy's)."""
+    return ThreadpoolController().select(internal_api="openblas")
 
 
 # ------------------------------------------------------------------------------- interface
@@ -163,7 +203,7 @@ class ScipySchur:
         else:  # SuperLU reordered the tail after all: S^-1 from k solves
             E = np.zeros((n, k))
             E[tail, np.arange(k)] = 1.0
-            S = np.linalg.inv(lu.solve(E)[tail])
+            S = np.linalg.inv(_superlu_solve(lu, E)[tail])
         self._lu, self._index, self.shape = lu, np.asarray(index), (n, n)
         self.S = symmetrize(S)
 

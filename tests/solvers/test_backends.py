@@ -528,6 +528,53 @@ def test_substructuring_stops_at_a_failed_piece(monkeypatch):
     assert sorted(calls)[:2] == [0, 1] and len(calls) <= 3  # at most one piece started after
 
 
+@pytest.mark.parametrize("transpose", [False, True])
+def test_superlu_solves_of_many_columns_shared_among_threads(monkeypatch, transpose):
+    """A SuperLU solve of many columns, shared among threads from the main thread, gives what
+    one call gives (to rounding); other threads, and too few columns, solve in one call."""
+    import threading
+
+    monkeypatch.setattr(linsolve, "SOLVE_SPLIT_ROWS", 0)
+    monkeypatch.setattr(linsolve, "usable_cpus", lambda: 3)
+    K = prepare(loads_case(square_case(size=0.1))).system.stiffness(*lame(1.0, 0.3))
+    order = ordering.minimum_degree(K)
+    rng = np.random.default_rng(5)
+    B = rng.standard_normal((K.shape[0], 29))
+    calls = []
+
+    class Spy:  # SuperLU's solve, its column counts recorded
+        def __init__(self, lu):
+            self.lu = lu
+
+        def solve(self, b, trans="N"):
+            calls.append(b.shape[1])
+            return self.lu.solve(b, trans=trans)
+
+    for factor in (linsolve.ScipyFactor(K, symmetric=False, order=order),
+                   linsolve.ScipyFactor(K, symmetric=True)):
+        lu = factor._lu
+        spy = Spy(lu)
+        factor._lu = spy
+        calls.clear()
+        X = factor.solve(B, transpose=transpose)
+        assert sorted(calls) == [9, 10, 10]  # three threads, 8 columns at least each
+        factor._lu = lu
+        with monkeypatch.context() as alone:
+            alone.setattr(linsolve, "usable_cpus", lambda: 1)
+            np.testing.assert_allclose(X, factor.solve(B, transpose=transpose), rtol=0,
+                                       atol=1e-13 * np.abs(X).max())
+        assert np.abs((K.T if transpose else K) @ X - B).max() <= 1e-10 * np.abs(B).max()
+        calls.clear()
+        factor._lu = spy
+        other = threading.Thread(target=factor.solve, args=(B,))
+        other.start()
+        other.join()
+        assert calls == [29]
+        calls.clear()
+        factor.solve(B[:, :15])  # fewer than two parts of 8
+        assert calls == [15]
+
+
 @pytest.mark.parametrize("backend", backends())
 def test_a_schur_factorization_solves_the_whole_system(backend):
     """The factorization that gives S also solves K x = b (PARDISO: forward substitution,
