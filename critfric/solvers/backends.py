@@ -133,12 +133,21 @@ def _superlu_solve(lu, b: np.ndarray, trans: str = "N") -> np.ndarray:
     def part(i: int) -> None:
         x[:, ends[i]:ends[i + 1]] = lu.solve(b[:, ends[i]:ends[i + 1]], trans=trans)
 
-    with _openblas().limit(limits=1), ThreadPoolExecutor(parts - 1) as pool:
-        others = [pool.submit(part, i) for i in range(1, parts)]
-        part(0)
-        for other in others:
-            other.result()
+    with _openblas().limit(limits=1):
+        _in_threads(part, range(parts), parts)
     return x
+
+
+def _in_threads(fn, items, workers: int) -> list:
+    """fn over items, ``workers`` threads at a time, the results in order."""
+    items = list(items)
+    if workers == 1 or len(items) < 2:
+        return [fn(h) for h in items]
+    pool = ThreadPoolExecutor(min(workers, len(items)))
+    try:
+        return list(pool.map(fn, items))
+    finally:  # on an error or Ctrl-C, no item not yet started is begun
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 @functools.cache
@@ -274,7 +283,8 @@ class SplitSchur:
         self.shape = (n, n)
         A_II = A[interface][:, interface]  # sparse: the dense S_I is the one large copy
         S_I = A_II.toarray()
-        for h, S_h in enumerate(self._map(lambda h: self._factor(h).S, range(len(ids)))):
+        S_pieces = _in_threads(lambda h: self._factor(h).S, range(len(ids)), self._workers)
+        for h, S_h in enumerate(S_pieces):
             touch = self._touch[h]
             S_I[np.ix_(touch, touch)] += S_h - A_II[touch][:, touch].toarray()
         self._S_sc = S_I[k:, :k].copy()
@@ -285,17 +295,6 @@ class SplitSchur:
                               f"definite: {_SINGULAR}") from None
         S = S_I[:k, :k] - self._S_sc.T @ la.cho_solve(self._sep, self._S_sc)
         self.S = symmetrize(S)
-
-    def _map(self, fn, items) -> list:
-        """fn over items, ``workers`` at a time (in order)."""
-        items = list(items)
-        if self._workers == 1 or len(items) < 2:
-            return [fn(h) for h in items]
-        pool = ThreadPoolExecutor(min(self._workers, len(items)))
-        try:
-            return list(pool.map(fn, items))
-        finally:  # on an error or Ctrl-C, no piece not yet started is factored
-            pool.shutdown(wait=True, cancel_futures=True)
 
     def _factor(self, h: int) -> ScipySchur:
         """Piece h's factorization with its interface last."""
@@ -314,7 +313,7 @@ class SplitSchur:
             f = ScipyFactor(self._A[rows][:, rows], symmetric=True, order=np.arange(len(rows)))
             return -f.solve(self._A[rows][:, touch] @ x_I[self._touch[h]])
 
-        for h, x_h in enumerate(self._map(interior, range(len(self._rows)))):
+        for h, x_h in enumerate(_in_threads(interior, range(len(self._rows)), self._workers)):
             x[self._rows[h]] = x_h
         x[self._interface] = x_I
         return x

@@ -326,7 +326,9 @@ def _int(value: int):
 class OneThread:
     """One daemon thread, started on first use and kept, that runs the functions given to it
     one at a time, in order; a call from within it (one those functions make, a finalizer
-    the garbage collector runs there) runs at once. A forked child starts its own."""
+    the garbage collector runs there) runs at once. A forked child starts its own. Not a
+    ThreadPoolExecutor: its thread refuses work once the interpreter shuts down, when the
+    finalizers release the factors left, and a call from within it would wait on itself."""
 
     def __init__(self, name: str):
         self._name = name

@@ -209,19 +209,26 @@ def solve_jointly(groups: list[tuple[Deflated, list[tuple[np.ndarray, bool]], bo
     with threadpool_limits(1, user_api="blas"):  # see locus.Reduced.blas
         runs = [F._solve(u, transpose, rough) for F, systems, rough in groups
                 for u, transpose in systems]
-        out: list = [None] * len(runs)
-        pending = [(i, resume(run)) for i, run in enumerate(runs)]
-        while True:
-            for i, got in pending:
-                if isinstance(got, Done):
-                    out[i] = got.value
-            pending = [(i, u) for i, u in pending if not isinstance(u, Done)]
-            if not pending:
-                break
-            y = factor.solve(np.column_stack([u for _, u in pending]))
-            pending = [(i, resume(runs[i], y[:, j])) for j, (i, _) in enumerate(pending)]
+        out = drive(runs, lambda us: list(factor.solve(np.column_stack(us)).T))
     ends = np.cumsum([0] + [len(systems) for _, systems, _ in groups])
     return [out[a:b] for a, b in itertools.pairwise(ends)]
+
+
+def drive(runs: list, answer) -> list:
+    """Generator runs taken to their ends in lockstep, their return values in order: each
+    round, ``answer`` takes the pending runs' requests (a list) and gives their replies (a
+    list, in the same order), each sent to its run (an exception: thrown into it)."""
+    out: list = [None] * len(runs)
+    pending = [(i, resume(run)) for i, run in enumerate(runs)]
+    while True:
+        for i, got in pending:
+            if isinstance(got, Done):
+                out[i] = got.value
+        pending = [(i, got) for i, got in pending if not isinstance(got, Done)]
+        if not pending:
+            return out
+        replies = answer([got for _, got in pending])
+        pending = [(i, resume(runs[i], reply)) for (i, _), reply in zip(pending, replies)]
 
 
 class Done(NamedTuple):

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SolverError
-from .bordered import Bordered, Deflated, Done, NotConverged, resume, solve_jointly
+from .bordered import Bordered, Deflated, NotConverged, drive, solve_jointly
 from .pencil import SlidingPencil
 
 FOLD_TOL = 1e-9  # relative Newton step after which the coalescence is converged: the
@@ -55,16 +55,19 @@ def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray
     on the same pencil (the other direction; PARDISO reuses a :class:`Bordered`'s analysis);
     None: :class:`Bordered`."""
     F = Bordered(backend, order) if solver is None else solver.renewed()
-    run = _newton(pencil, f0, kappa0, right, left, F, backend, order)
-    request = resume(run)
-    while not isinstance(request, Done):
-        F, systems, rough = request
+    return drive([_newton(pencil, f0, kappa0, right, left, F, backend, order)], _each)[0]
+
+
+def _each(requests: list[tuple]) -> list:
+    """Each request (solver, systems, rough) solved on its own solver; a stall is thrown
+    into its run (which then factors the bordered matrix)."""
+    out = []
+    for F, systems, rough in requests:
         try:
-            solved = F.solve_many(systems, rough)
+            out.append(F.solve_many(systems, rough))
         except NotConverged as stalled:
-            solved = stalled  # thrown into the run: it factors the bordered matrix
-        request = resume(run, solved)
-    return request.value
+            out.append(stalled)
+    return out
 
 
 def find_folds(pencil: SlidingPencil, starts: list[tuple], *, backend: str = "scipy",
@@ -89,18 +92,7 @@ def _lockstep(pencil: SlidingPencil, starts: list[tuple], solver: Deflated, back
               order) -> list[Fold]:
     runs = [_newton(pencil, *start, solver if i == 0 else solver.sibling(), backend, order)
             for i, start in enumerate(starts)]
-    requests = {i: resume(run) for i, run in enumerate(runs)}
-    found: list = [None] * len(runs)
-    while requests:
-        solved = solve_jointly(list(requests.values()))  # NotConverged: given up
-        for (i, _), x in zip(list(requests.items()), solved):
-            request = resume(runs[i], x)
-            if isinstance(request, Done):
-                found[i] = request.value
-                del requests[i]
-            else:
-                requests[i] = request
-    return found
+    return drive(runs, solve_jointly)  # NotConverged: given up
 
 
 def _newton(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
