@@ -274,9 +274,6 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
     except CaseError as exc:
         raise exc.located(case.source) from None
     check_dimension(case, mesh.dim)
-    dirichlet = [name for name in case.boundary["dirichlet"] if name in mesh.facets]
-    if dirichlet:  # unknown names are reported by contact_layout
-        check_held(mesh, _facet_nodes(mesh, dirichlet), source=case.source)
     contact = [name for name in case.boundary["contact"] if name in mesh.facets]
     check_dofs(mesh.dim * mesh.n_nodes, element=mesh.element, what="the mesh made",
                source=case.source, max_dofs=max_dofs, dim=mesh.dim,
@@ -302,6 +299,11 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
     try:
         K_lam, K_G = assemble_elasticity(mesh, on_pattern=start if _plan else None)
         t3 = time.perf_counter()
+        # checked once the analysis has started (beside it), the mesh's diameter made there
+        dirichlet = [name for name in case.boundary["dirichlet"] if name in mesh.facets]
+        if dirichlet:  # unknown names are reported by contact_layout
+            check_held(mesh, _facet_nodes(mesh, dirichlet), source=case.source)
+        _ = mesh.diameter
         make = contact_system3d if mesh.dim == 3 else contact_system
         system = make(mesh, K_lam, K_G, contact=case.boundary["contact"],
                       dirichlet=case.boundary["dirichlet"], source=case.source, layout=layout)

@@ -17,6 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import CaseError
+from .arrays import ranges
 from .mesh import Mesh
 
 FREE, STUCK, SLIP = 0, 1, 2  # contact status of a node (I_f, I_s, I_c)
@@ -235,16 +236,11 @@ def rotated(K: sp.spmatrix, nodes: np.ndarray, normal, tangent, *others) -> list
     if (np.any(ip[2 * nodes + 2] - ip[2 * nodes + 1] != length)
             or np.any(col[col0 + 1] != col[col0] + 1)):
         raise RuntimeError("internal: the stiffness is not made of full 2 x 2 node blocks")
-    row0 = _ranges(ip[2 * nodes], length)  # entries of the rows 2i of the contact nodes
+    row0 = ranges(ip[2 * nodes], length)  # entries of the rows 2i of the contact nodes
     for A in mats:
         _combine(A.data, row0, row0 + np.repeat(length, length), R)  # rows 2i, 2i + 1
         _combine(A.data, col0, col0 + 1, R)  # then columns 2j, 2j + 1
     return mats
-
-
-def _ranges(start: np.ndarray, length: np.ndarray) -> np.ndarray:
-    """The concatenated index ranges start[k] .. start[k] + length[k] - 1."""
-    return np.repeat(start - np.cumsum(length) + length, length) + np.arange(length.sum())
 
 
 def _combine(data: np.ndarray, e0: np.ndarray, e1: np.ndarray, R: np.ndarray) -> None:
@@ -264,7 +260,7 @@ def _split_free(mats: list, fixed: np.ndarray) -> list:
     m, d = int(free.sum()), int(fixed.sum())
     in_fixed_col = np.flatnonzero(fixed[col])
     fixed_rows = np.flatnonzero(fixed)
-    dropped = np.union1d(in_fixed_col, _ranges(ip[fixed_rows], np.diff(ip)[fixed_rows]))
+    dropped = np.union1d(in_fixed_col, ranges(ip[fixed_rows], np.diff(ip)[fixed_rows]))
     row_of = lambda entries: np.searchsorted(ip, entries, side="right") - 1
     keep = np.ones(len(col), dtype=bool)
     keep[dropped] = False

@@ -23,11 +23,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import CaseError
+from .arrays import ranges
 from .contact import (
     STRAIGHT_TOL,
     ContactSystem,
     Layout,
-    _ranges,
     _split_free,
     contact_frames,
     frame_rotation,
@@ -219,7 +219,7 @@ def _block_entries(ip: np.ndarray, col: np.ndarray, nodes: np.ndarray, d: int, n
     (d, k) of the rows d i + a (a = 0 .. d-1) with their node's index in ``nodes``, and the
     same for the columns; None otherwise."""
     length = ip[d * nodes + 1] - ip[d * nodes]
-    first = _ranges(ip[d * nodes], length)  # entries of the rows d i
+    first = ranges(ip[d * nodes], length)  # entries of the rows d i
     offsets = np.concatenate([[0], np.cumsum(length)])[:-1]
     within = np.arange(len(first)) - np.repeat(offsets, length)
     rows = np.empty((d, len(first)), dtype=np.int64)

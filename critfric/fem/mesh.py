@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -60,9 +61,10 @@ class Mesh:
         return (f"Mesh({self.element}, {self.dim}D, {self.n_nodes} nodes, {self.n_cells} cells, "
                 f"{kind} {sorted(self.facets)})")
 
-    @property
+    @cached_property
     def diameter(self) -> float:
-        """h: the largest cell diameter (longest distance between two vertices of a cell)."""
+        """h: the largest cell diameter (longest distance between two vertices of a cell),
+        made on first use and kept (the mesh is not changed in place)."""
         nv = self.fe.n_vertices
         coords = [np.ascontiguousarray(self.points[:, k]) for k in range(self.dim)]
         largest = 0.0  # each vertex pair once, one coordinate at a time (no (n, nv, dim) copy)

@@ -17,14 +17,18 @@ from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 
+from .arrays import ranges, stable_argsort
+
 
 class BlockPattern:
     """The node-block CSR pattern of ``cells`` (n_cells, n_local) over ``n_nodes`` nodes,
     ``dim`` x ``dim`` blocks (node i has DOFs dim i + k).
 
+    The distinct node pairs of the cells are found first; :meth:`upper` needs nothing more.
+    The node pattern (rows of every neighbour) follows on first use, then ``where``:
+
     where : (n_cells, n_local, n_local) position, in the node pattern, of the block of
-            cell c's local node pair (a, b) (made on first use: the node pattern, and with it
-            :meth:`upper`, is ready before).
+            cell c's local node pair (a, b).
     """
 
     def __init__(self, cells: np.ndarray, n_nodes: int, dim: int = 2):
@@ -35,29 +39,44 @@ class BlockPattern:
         u, v = cells[:, a], cells[:, b]  # (n_cells, n_pairs), u != v
         keys, inverse = np.unique((np.minimum(u, v) * n + np.maximum(u, v)).ravel(),
                                   return_inverse=True)
-        lo, hi = keys // n, keys % n  # distinct pairs lo < hi, sorted by (lo, hi)
+        self.n_nodes, self.dim = n, int(dim)
+        self.nnz = n + 2 * len(keys)  # node blocks: the diagonal and each pair both ways
+        self._itype = np.int32 if dim * dim * self.nnz < np.iinfo(np.int32).max else np.int64
+        # the distinct pairs lo < hi, sorted by (lo, hi)
+        self._lo, self._hi = (keys // n).astype(self._itype), (keys % n).astype(self._itype)
+        self._cells, self._inverse = cells, inverse.reshape(n_cells, -1)
+
+    @cached_property
+    def _node(self) -> tuple:
+        """The node pattern (ptr, col) and the positions in it of the diagonal blocks and of
+        each pair's blocks (lo, hi) and (hi, lo)."""
+        n, lo, hi = self.n_nodes, self._lo, self._hi
         n_lower, n_upper = np.bincount(hi, minlength=n), np.bincount(lo, minlength=n)
-        degree = n_lower + n_upper + 1
         ptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(degree, out=ptr[1:])
+        np.cumsum(n_lower + n_upper + 1, out=ptr[1:])
         diag = ptr[:-1] + n_lower
-        pair = np.arange(len(keys))
+        pair = np.arange(len(lo))
         upper = diag[lo] + 1 + pair - (np.cumsum(n_upper) - n_upper)[lo]  # (lo, hi) in row lo
-        by_hi = np.argsort(hi, kind="stable")  # row hi: its lower neighbours sorted by lo
+        by_hi = stable_argsort(hi)  # row hi: its lower neighbours sorted by lo
         lower = np.empty_like(upper)  # (hi, lo) in row hi
         lower[by_hi] = ptr[hi[by_hi]] + pair - (np.cumsum(n_lower) - n_lower)[hi[by_hi]]
         col = np.empty(ptr[-1], dtype=np.int64)
         col[diag], col[upper], col[lower] = np.arange(n), hi, lo
-        self.n_nodes, self.nnz, self.dim = n, int(ptr[-1]), int(dim)
-        self._ptr, self._col = ptr, col  # the node pattern
-        self._itype = np.int32 if dim * dim * self.nnz < np.iinfo(np.int32).max else np.int64
-        # what ``where`` is made from, on first use: the node pattern is ready before it
-        self._made_from = (cells, inverse.reshape(n_cells, -1), diag, upper, lower)
+        return ptr, col, diag, upper, lower
+
+    @property
+    def _ptr(self) -> np.ndarray:
+        return self._node[0]
+
+    @property
+    def _col(self) -> np.ndarray:
+        return self._node[1]
 
     @cached_property
     def where(self) -> np.ndarray:
-        cells, inverse, diag, upper, lower = self._made_from
-        del self._made_from
+        _, _, diag, upper, lower = self._node
+        cells, inverse = self._cells, self._inverse
+        del self._cells, self._inverse  # needed for nothing else
         n_cells, nl = cells.shape
         a, b = np.triu_indices(nl, k=1)
         where = np.empty((n_cells, nl, nl), dtype=np.intp)
@@ -97,31 +116,32 @@ class BlockPattern:
 
     def upper(self, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``upper_pattern(self.indptr, self.indices, position)[:2]``, the upper triangle of
-        the DOF pattern restricted to the rows and columns kept by ``position``, made from the
-        node pattern's upper half alone (a quarter of the DOF pattern's entries, and the DOF
-        pattern is not built): what a factorization's analysis needs first."""
-        d, n, ptr, col = self.dim, self.n_nodes, self._ptr, self._col
-        itype = self._itype
-        node_row = np.repeat(np.arange(n, dtype=itype), np.diff(ptr))
-        up = np.flatnonzero(col >= node_row)  # node entries (i, j >= i), in CSR order
-        i, j = node_row[up], col[up].astype(itype)
-        del node_row
+        the DOF pattern restricted to the rows and columns kept by ``position`` (increasing
+        where kept), made from the distinct node pairs alone (neither the node pattern nor
+        the DOF pattern is built): what a factorization's analysis needs first."""
+        d, n, itype = self.dim, self.n_nodes, self._itype
+        lo, hi = self._lo, self._hi
+        # node row i of the upper half: i, then its upper neighbours in order
         uptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(np.bincount(i, minlength=n), out=uptr[1:])
-        at = _block_entries(uptr, d)  # the DOF order of the upper node blocks' entries
-        dof_row = np.empty(d * d * len(up), dtype=itype)
-        dof_col = np.empty_like(dof_row)
-        for k in range(d):
-            for m in range(d):
-                dof_row[at[k][m]], dof_col[at[k][m]] = d * i + k, d * j + m
-        del at, i, j
+        np.cumsum(np.bincount(lo, minlength=n) + 1, out=uptr[1:])
+        ucol = np.empty(uptr[-1], dtype=itype)
+        ucol[uptr[:-1]] = np.arange(n, dtype=itype)
+        ucol[lo + np.arange(1, len(lo) + 1)] = hi  # pair p of row lo: lo + 1 + p
+        # node row i's DOF columns d j + m (j in row i, m < d), renumbered (-1: dropped);
+        # DOF row d i + k takes them from the k-th on (the diagonal block's upper triangle)
         position = np.asarray(position).astype(itype)
-        new_row, new_col = position[dof_row], position[dof_col]
-        keep = (dof_col >= dof_row) & (new_row >= 0) & (new_col >= 0)
-        m_kept = int(np.count_nonzero(position >= 0))
-        out = np.zeros(m_kept + 1, dtype=itype)
-        np.cumsum(np.bincount(new_row[keep], minlength=m_kept), out=out[1:])
-        return out, new_col[keep]
+        new = position[(d * ucol[:, None] + np.arange(d, dtype=itype)).ravel()]
+        del ucol
+        start = (d * uptr[:-1, None] + np.arange(d)).ravel()  # DOF row d i + k
+        stop = np.repeat(d * uptr[1:], d)
+        kept = position >= 0
+        start, length = start[kept], stop[kept] - start[kept]
+        cols = new[ranges(start, length)]
+        del new
+        keep = cols >= 0
+        out = np.zeros(len(length) + 1, dtype=itype)  # every row has its diagonal entry
+        out[1:] = np.cumsum(keep, dtype=itype)[np.cumsum(length) - 1]
+        return out, cols[keep]
 
     def block_sums(self, values: np.ndarray) -> np.ndarray:
         """Sum of cell values (n_cells, n_local, n_local) into the node pattern (nnz,)."""

@@ -16,6 +16,8 @@ import ctypes
 
 import numpy as np
 
+from ..fem.arrays import ranges
+
 _OBJECT_SIZE = 144  # sizeof(SuperLUObject) on 64-bit CPython
 _HEAD = 16  # PyObject_HEAD
 SLU_NC, SLU_SC, SLU_D, SLU_TRLU, SLU_TRU = 0, 3, 1, 1, 4  # SuperLU's enum values
@@ -87,8 +89,8 @@ def trailing_blocks(lu, k: int) -> tuple[np.ndarray, np.ndarray] | None:
     val_ptr = _array(Ls.nzval_colptr, n + 1)
     if np.any(val_ptr[cols + 1] - val_ptr[cols] != length):
         return None
-    rows = _array(Ls.rowind, row_ptr[n])[_ranges(start, length)]
-    vals = _array(Ls.nzval, val_ptr[n])[_ranges(val_ptr[cols], length)]
+    rows = _array(Ls.rowind, row_ptr[n])[ranges(start, length)]
+    vals = _array(Ls.nzval, val_ptr[n])[ranges(val_ptr[cols], length)]
     col = np.repeat(cols, length)
     tail = rows >= t0
     lower, upper = tail & (rows > col), tail & (rows <= col)
@@ -97,15 +99,10 @@ def trailing_blocks(lu, k: int) -> tuple[np.ndarray, np.ndarray] | None:
     Lcc[np.arange(k), np.arange(k)] = 1.0
     # U store: the rest of U's column j (rows above its supernode)
     ptr = _array(Us.colptr, n + 1)
-    where = _ranges(ptr[cols], ptr[cols + 1] - ptr[cols])
+    where = ranges(ptr[cols], ptr[cols + 1] - ptr[cols])
     rows, vals = _array(Us.rowind, ptr[n])[where], _array(Us.nzval, ptr[n])[where]
     col = np.repeat(cols, ptr[cols + 1] - ptr[cols])
     tail = rows >= t0
     Ucc[rows[tail] - t0, col[tail] - t0] = vals[tail]
     return Lcc, Ucc
 
-
-def _ranges(start: np.ndarray, length: np.ndarray) -> np.ndarray:
-    """The concatenated index ranges start[i] .. start[i] + length[i] - 1."""
-    start, length = np.asarray(start, dtype=np.int64), np.asarray(length, dtype=np.int64)
-    return np.repeat(start - np.cumsum(length) + length, length) + np.arange(length.sum())

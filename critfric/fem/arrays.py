@@ -1,0 +1,30 @@
+"""Index arithmetic on numpy arrays shared by the meshes, patterns and factors."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def ranges(start: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """The concatenated index ranges start[k] .. start[k] + length[k] - 1 (int32 where every
+    index and the total length fit, else int64)."""
+    start, length = np.asarray(start, dtype=np.int64), np.asarray(length, dtype=np.int64)
+    offset = start - np.cumsum(length) + length
+    total = int(length.sum())
+    small = total < 2**31 and (len(start) == 0 or (offset.min() >= -2**31
+                                                   and (start + length).max() < 2**31))
+    itype = np.int32 if small else np.int64
+    return np.repeat(offset.astype(itype), length) + np.arange(total, dtype=itype)
+
+
+def stable_argsort(keys: np.ndarray) -> np.ndarray:
+    """``np.argsort(keys, kind="stable")`` (ties in their order), by the default sort where
+    the keys are distinct, or made distinct by their index (nonnegative integer keys below
+    2**62 / len): 4-5x faster than the stable sort at 1 M keys."""
+    n = len(keys)
+    if keys.dtype.kind == "i" and n and 0 <= keys.min() and keys.max() < (2**62 // n):
+        return np.argsort(keys.astype(np.int64) * n + np.arange(n))
+    order = np.argsort(keys)
+    if np.any(keys[order[1:]] == keys[order[:-1]]):  # ties: their order as given
+        order = np.argsort(keys, kind="stable")
+    return order
