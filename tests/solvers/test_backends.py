@@ -3,6 +3,8 @@ independent dense formulation, for every contact state (stuck, free and slipping
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -310,11 +312,57 @@ def test_every_pardiso_call_runs_in_one_thread(monkeypatch):
     sc.cycle = sc
     del sc
     gc.collect()
+    pardiso.MKL_THREAD.call(int)  # the release is posted: done once the calls before are
     assert {11, 22, 33, 333, -1} <= {phase for _, phase in seen}
     assert len({ident for ident, _ in seen}) == 1
     assert seen[0][0] not in (threading.get_ident(), other.ident)
     with pytest.raises(ValueError, match="shape"):  # PARDISO would read past it
         linsolve.factorize(K, symmetric=True, backend="pardiso").solve(b[:-1])
+
+
+@pytest.mark.skipif("pardiso" not in linsolve.available_backends(),
+                    reason="backend 'pardiso' not installed (pip install critfric[fast])")
+def test_a_released_factor_does_not_wait_for_the_mkl_thread(monkeypatch):
+    """Dropping a factor posts its release (phase -1) to the MKL thread and returns at once,
+    even while that thread is busy; the next call runs after the release, and at exit the
+    process waits for the releases still queued."""
+    import threading
+
+    from critfric.solvers import pardiso
+
+    seen = []
+    original = pardiso._phase
+    monkeypatch.setattr(pardiso, "_phase", lambda lib, threads, pt, mtype, phase, *rest: (
+        seen.append(phase) or original(lib, threads, pt, mtype, phase, *rest)))
+    K = (sp.diags([4.0] * 50) + sp.diags([-1.0] * 49, 1) + sp.diags([-1.0] * 49, -1)).tocsr()
+    factor = linsolve.factorize(K, symmetric=True, backend="pardiso")
+    busy, go = threading.Event(), threading.Event()
+    blocker = pardiso.MKL_THREAD.submit(lambda: busy.set() or go.wait(10))
+    assert busy.wait(10)
+    del factor  # the finalizer runs here, with the MKL thread blocked
+    assert -1 not in seen and not pardiso.MKL_THREAD.idle
+    go.set()
+    assert blocker.result() is True
+    assert linsolve.factorize(K, symmetric=True, backend="pardiso").solve(np.ones(50)).shape
+    assert seen.index(-1) < seen.index(11, seen.index(-1))  # released before the next one
+    assert pardiso.MKL_THREAD.idle
+    script = (
+        "import numpy as np, scipy.sparse as sp\n"
+        "from critfric.solvers import backends as linsolve, pardiso\n"
+        "original = pardiso._phase\n"
+        "def phase(lib, threads, pt, mtype, phase, *rest):\n"
+        "    err = original(lib, threads, pt, mtype, phase, *rest)\n"
+        "    if phase == -1:\n"
+        "        print('released', flush=True)\n"
+        "    return err\n"
+        "pardiso._phase = phase\n"
+        "K = sp.diags([2.0] * 30, format='csr')\n"
+        "kept = linsolve.factorize(K, symmetric=True, backend='pardiso')\n"
+        "print('exit', flush=True)\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         check=False, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["exit", "released"]
 
 
 @pytest.mark.parametrize("density", [0.0, 0.003, 0.05])
