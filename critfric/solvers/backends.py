@@ -293,7 +293,12 @@ class SplitSchur:
         except la.LinAlgError:
             raise SolverError("the Schur complement onto the separator is not positive "
                               f"definite: {_SINGULAR}") from None
-        S = S_I[:k, :k] - self._S_sc.T @ la.cho_solve(self._sep, self._S_sc)
+        # S_sc^T C^-1 S_sc = Y^T Y, Y = U^-T S_sc (C = U^T U): one triangular solve, not two
+        factor, lower = self._sep
+        Y = la.solve_triangular(factor, self._S_sc, trans="N" if lower else "T", lower=lower,
+                                check_finite=False)
+        S = S_I[:k, :k] - Y.T @ Y
+        del Y
         self.S = symmetrize(S)
 
     def _factor(self, h: int) -> ScipySchur:
