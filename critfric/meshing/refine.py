@@ -120,4 +120,3 @@ def renumber(mesh: Mesh) -> Mesh:
     cells = cells[stable_argsort(cells.min(axis=1))]
     return Mesh(p[order], cells, mesh.element,
                 {name: rank[f] for name, f in mesh.edges.items()})
-

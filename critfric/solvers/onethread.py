@@ -24,7 +24,7 @@ class OneThread:
         self._start = threading.Lock()
         self._thread: threading.Thread | None = None
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
-        self._waiting = 0  # calls queued or running
+        self._waiting = 0  # calls that a caller may wait on, queued or running
         if hasattr(os, "register_at_fork"):  # POSIX
             os.register_at_fork(after_in_child=self._forget)
 
