@@ -365,6 +365,24 @@ def test_a_released_factor_does_not_wait_for_the_mkl_thread(monkeypatch):
     assert out.stdout.split() == ["exit", "released"]
 
 
+@pytest.mark.parametrize("k", [1, 2, 9, 200])
+def test_trailing_product_is_l_times_u(k):
+    """The trailing blocks' product L U of a symmetric positive definite factorization (L unit
+    lower, U = D L^T) by lauum equals the plain product to rounding, and is symmetric; a
+    non-positive pivot falls back on the plain product."""
+    rng = np.random.default_rng(k)
+    A = rng.standard_normal((k, k))
+    A = A @ A.T + k * np.eye(k)
+    c = la.cholesky(A, lower=True)
+    d = np.diag(c)
+    L, U = np.asfortranarray(c / d), np.asfortranarray(d[:, None] * c.T)
+    S = linsolve._trailing_product(L, U)
+    assert np.abs(S - L @ U).max() <= 1e-14 * np.abs(A).max()
+    np.testing.assert_array_equal(S, S.T)
+    U[0, 0] = -U[0, 0]
+    np.testing.assert_array_equal(linsolve._trailing_product(L, U), L @ U)
+
+
 @pytest.mark.parametrize("density", [0.0, 0.003, 0.05])
 def test_upper_triangle_is_triu(density):
     A = sp.random(300, 300, density=density, format="csr", random_state=3)
