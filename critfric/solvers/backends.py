@@ -249,9 +249,7 @@ def _trailing_product(L: np.ndarray, U: np.ndarray) -> np.ndarray:
     if not np.all(d > 0):
         return L @ U
     R = np.asfortranarray((L * np.sqrt(d))[::-1, ::-1])  # upper (L: zeros above)
-    out, info = la.lapack.dlauum(R, lower=0, overwrite_c=True)
-    if info != 0:
-        return L @ U
+    out, _ = la.lapack.dlauum(R, lower=0, overwrite_c=True)  # fails on bad arguments alone
     S = out[::-1, ::-1]  # S's lower triangle, zeros above
     S += np.tril(S, -1).T
     return S
