@@ -28,3 +28,21 @@ def stable_argsort(keys: np.ndarray) -> np.ndarray:
     if np.any(keys[order[1:]] == keys[order[:-1]]):  # ties: their order as given
         order = np.argsort(keys, kind="stable")
     return order
+
+
+def distinct(values: np.ndarray) -> np.ndarray:
+    """``np.unique(values)`` (the sorted distinct values, flattened) by one sort: numpy 2.3+
+    takes a hash table for integers without ``return_*``, 40-100x slower here (3.9 M
+    indices: 1.1 s against 0.025 s)."""
+    x = np.sort(np.asarray(values).ravel())
+    keep = np.empty(len(x), dtype=bool)
+    keep[:1] = True
+    np.not_equal(x[1:], x[:-1], out=keep[1:])
+    return x[keep]
+
+
+def unused_nodes(cells: np.ndarray, n: int) -> np.ndarray:
+    """The node numbers below n that no cell uses, increasing."""
+    used = np.zeros(n, dtype=bool)
+    used[np.asarray(cells).ravel()] = True
+    return np.flatnonzero(~used)

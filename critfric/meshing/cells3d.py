@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import CaseError
+from ..fem.arrays import unused_nodes
 from ..fem.elements import get_element
 from ..fem.mesh import Mesh, orient
 from .overlap import check_tiling_3d
@@ -147,8 +148,7 @@ def second_order(points: np.ndarray, cells: np.ndarray, element: str):
 
     spec = solid(element)
     n, nv = len(points), spec.n_vertices
-    directed, first, inverse, _ = edge_table(cells, n, spec.edges)
-    ends = directed[first]
+    ends, inverse = edge_table(cells, n, spec.edges)
     new_points = [points, 0.5 * (points[ends[:, 0]] + points[ends[:, 1]])]
     out = np.empty((len(cells), spec.n_local), dtype=np.int64)
     out[:, :nv] = cells
@@ -247,7 +247,7 @@ def inline_solid(nodes, cells, faces: dict, element: str, *,
     if len(cells) == 0:
         raise CaseError("needs at least one cell", key=ckey)
     cells = check_cells(points, cells, solid(spec.linear), ckey, min_quality=min_quality)
-    unused = np.setdiff1d(np.arange(n), cells)
+    unused = unused_nodes(cells, n)
     if len(unused):
         raise CaseError(f"node {int(unused[0])} belongs to no cell", key="geometry.nodes")
     linear = cells

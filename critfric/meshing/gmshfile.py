@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import CaseError, SolverError
+from ..fem.arrays import distinct
 from ..fem.mesh import Mesh
 from ..guards import Footprint
 from .geoscript import refusals
@@ -82,7 +83,7 @@ def _build(points, cells, edges: dict, element: str, path: Path, name: str) -> M
         raise CaseError("the mesh is not in the plane z = 0; allowed: a 2D mesh in that plane, "
                         "or a 3D mesh with its cells (tetrahedra or hexahedra) in the file",
                         file=str(path), key="geometry.file")
-    used = np.unique(cells)
+    used = distinct(cells)
     lookup = np.full(len(points), -1, dtype=np.int64)
     lookup[used] = np.arange(len(used))
     groups = {}

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import CaseError, SolverError
+from ..fem.arrays import distinct
 from ..fem.mesh import Mesh
 from .cells3d import inline_solid
 from .mesh import MIN_QUALITY
@@ -50,7 +51,7 @@ def build(points, cells, faces: dict, element: str, path: Path, name: str) -> Me
                         f" ({name}); allowed: " + " or ".join(family) + hint, file=str(path),
                         key="mesh.element")
     points = np.asarray(points, dtype=np.float64)[:, :3]
-    used = np.unique(cells)
+    used = distinct(cells)
     lookup = np.full(len(points), -1, dtype=np.int64)
     lookup[used] = np.arange(len(used))
     groups = {}

@@ -9,6 +9,7 @@ from contextlib import contextmanager
 import numpy as np
 
 from ..errors import CaseError, CritfricError, SolverError
+from ..fem.arrays import distinct, unused_nodes
 from ..fem.elements import get_element
 from ..fem.mesh import Mesh, orient
 from .cells3d import index_array as _index_array
@@ -231,7 +232,7 @@ def _extract(element: str) -> Mesh:
     node_tags = np.asarray(node_tags, dtype=np.int64)
     position = np.empty(node_tags.max() + 1, dtype=np.int64)
     position[node_tags] = np.arange(len(node_tags))
-    used = np.unique(cell_tags)
+    used = distinct(cell_tags)
     points = np.asarray(coords, dtype=np.float64).reshape(-1, 3)[position[used], :2]
     lookup = np.full(node_tags.max() + 1, -1, dtype=np.int64)
     lookup[used] = np.arange(len(used))
@@ -294,7 +295,7 @@ def inline_mesh(nodes, cells, edges: dict, element: str) -> Mesh:
         raise CaseError(f"cell {i} is a sliver (area / longest edge^2 = {quality[i]:.2g}, nodes "
                         f"{cells[i].tolist()}): its stiffness would be singular to rounding; "
                         f"allowed: cells with area / longest edge^2 >= {MIN_QUALITY:g}", key=ckey)
-    unused = np.setdiff1d(np.arange(n), cells)
+    unused = unused_nodes(cells, n)
     if len(unused):
         raise CaseError(f"node {int(unused[0])} belongs to no cell", key="geometry.nodes")
 

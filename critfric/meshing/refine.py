@@ -13,29 +13,25 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..fem.arrays import stable_argsort
+from ..fem.arrays import distinct, stable_argsort
 from ..fem.elements import get_element
 from ..fem.mesh import Mesh
 
 
 def edge_table(cells: np.ndarray, n_nodes: int, local_edges: np.ndarray):
-    """The distinct edges of order-1 ``cells``: (first, inverse, count), where ``directed``
-    = cells[:, local_edges] flattened to (n_cells * n_edges, 2) has its distinct edges at
-    rows ``first`` (in increasing (min, max) node order), row j is edge ``inverse[j]`` and
-    edge e belongs to ``count[e]`` cells."""
-    directed = cells[:, local_edges].reshape(-1, 2)
-    key = np.minimum(directed[:, 0], directed[:, 1]) * np.int64(n_nodes) + np.maximum(
-        directed[:, 0], directed[:, 1])
-    _, first, inverse, count = np.unique(key, return_index=True, return_inverse=True,
-                                         return_counts=True)
-    return directed, first, inverse.reshape(len(cells), -1), count
+    """The distinct edges of order-1 ``cells``: (ends, inverse), where ``ends`` (n_edges, 2)
+    holds each edge's end nodes, lower first, in increasing (lower, upper) order, and
+    ``inverse`` (n_cells, len(local_edges)) the edge of each local edge of each cell."""
+    directed = cells[:, local_edges]  # (n_cells, n_edges, 2)
+    key = (np.minimum(directed[..., 0], directed[..., 1]) * np.int64(n_nodes)
+           + np.maximum(directed[..., 0], directed[..., 1]))
+    keys = distinct(key)
+    return np.column_stack([keys // n_nodes, keys % n_nodes]), np.searchsorted(keys, key)
 
 
-def _edge_lookup(directed, first, n_nodes: int):
+def _edge_lookup(ends, n_nodes: int):
     """A function (k, 2) node pairs -> their edge numbers (pairs must be edges)."""
-    ends = directed[first]
-    keys = np.minimum(ends[:, 0], ends[:, 1]) * np.int64(n_nodes) + np.maximum(ends[:, 0],
-                                                                               ends[:, 1])
+    keys = ends[:, 0] * np.int64(n_nodes) + ends[:, 1]
 
     def lookup(pairs):
         pairs = np.asarray(pairs, dtype=np.int64)
@@ -51,8 +47,7 @@ def split(mesh: Mesh) -> Mesh:
     spec = mesh.fe
     points, cells = mesh.points, np.asarray(mesh.cells, dtype=np.int64)
     n, nc = len(points), len(cells)
-    directed, first, inverse, _ = edge_table(cells, n, spec.edges)
-    ends = directed[first]
+    ends, inverse = edge_table(cells, n, spec.edges)
     mid = n + inverse  # (nc, n_vertices): node of the midpoint of local edge i (i -> i+1)
     new = [points, 0.5 * (points[ends[:, 0]] + points[ends[:, 1]])]
     v = cells
@@ -60,7 +55,7 @@ def split(mesh: Mesh) -> Mesh:
         children = [(v[:, 0], mid[:, 0], mid[:, 2]), (mid[:, 0], v[:, 1], mid[:, 1]),
                     (mid[:, 2], mid[:, 1], v[:, 2]), (mid[:, 0], mid[:, 1], mid[:, 2])]
     else:
-        c = n + len(first) + np.arange(nc)
+        c = n + len(ends) + np.arange(nc)
         new.append(0.25 * (points[v[:, 0]] + points[v[:, 1]] + points[v[:, 2]]
                            + points[v[:, 3]]))
         children = [(v[:, 0], mid[:, 0], c, mid[:, 3]), (mid[:, 0], v[:, 1], mid[:, 1], c),
@@ -69,7 +64,7 @@ def split(mesh: Mesh) -> Mesh:
     for k, child in enumerate(children):
         for j, node in enumerate(child):
             fine[:, k, j] = node
-    lookup = _edge_lookup(directed, first, n)
+    lookup = _edge_lookup(ends, n)
     edges = {}
     for name, facets in mesh.edges.items():
         m = n + lookup(facets[:, :2])
@@ -85,14 +80,13 @@ def second_order(mesh: Mesh, element: str) -> Mesh:
     spec = get_element(element)
     points, cells = mesh.points, np.asarray(mesh.cells, dtype=np.int64)
     n, nv = len(points), spec.n_vertices
-    directed, first, inverse, _ = edge_table(cells, n, spec.edges[:, :2])
-    ends = directed[first]
+    ends, inverse = edge_table(cells, n, spec.edges[:, :2])
     new_points = [points, 0.5 * (points[ends[:, 0]] + points[ends[:, 1]])]
     new_cells = [cells, n + inverse]
     if nv == 4:
         new_points.append(points[cells].mean(axis=1))
-        new_cells.append(n + len(first) + np.arange(len(cells))[:, None])
-    lookup = _edge_lookup(directed, first, n)
+        new_cells.append(n + len(ends) + np.arange(len(cells))[:, None])
+    lookup = _edge_lookup(ends, n)
     edges = {name: np.column_stack([f[:, :2], n + lookup(f[:, :2])])
              for name, f in mesh.edges.items()}
     return Mesh(np.concatenate(new_points), np.concatenate(new_cells, axis=1), element, edges)

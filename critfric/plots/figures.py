@@ -25,6 +25,7 @@ from matplotlib.figure import Figure
 from matplotlib.tri import Triangulation
 
 from ..errors import CaseError
+from ..fem.arrays import distinct
 from ..fem.loads import traction_load
 from ..files.export import SolveData, mode_fields, read_solve
 from ..files.sweepfile import read_sweep
@@ -326,7 +327,7 @@ def _von_mises(data, name, mode, fields) -> Figure:
     tris = _triangles(mesh)
     tri = Triangulation(mesh.points[:, 0], mesh.points[:, 1], tris)
     values = fields["von_mises_node"]
-    used = np.unique(tris)
+    used = distinct(tris)
     top = float(np.percentile(values[used], 99))
     fig = Figure(figsize=(7.2, 6.4))
     ax = fig.subplots()

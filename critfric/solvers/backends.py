@@ -36,6 +36,7 @@ import scipy.sparse.linalg as spla
 from threadpoolctl import ThreadpoolController
 
 from ..errors import SolverError
+from ..fem.arrays import distinct
 from ..guards import SPLIT_MIN_ROWS, usable_cpus
 from .pardiso import SINGULAR as _SINGULAR
 from .pardiso import PardisoFactor, PardisoPlan, pardiso_library, symmetrize
@@ -292,7 +293,7 @@ class SplitSchur:
         position = np.full(n, -1)
         position[interface] = np.arange(len(interface))
         at = (row_label >= 0) & (col_label < 0)  # piece rows, interface columns
-        pairs = np.unique(row_label[at] * len(interface) + position[A.indices[at]])
+        pairs = distinct(row_label[at] * len(interface) + position[A.indices[at]])
         self._touch = np.split(pairs % len(interface),
                                np.searchsorted(pairs // len(interface), np.arange(1, len(ids))))
         self._A, self._interface, self._workers = A, interface, max(1, workers)

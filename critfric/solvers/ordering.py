@@ -25,6 +25,7 @@ import weakref
 
 import numpy as np
 
+from ..fem.arrays import distinct
 from ..fem.elements import get_element
 
 LEAF = 16  # parts of at most this many nodes are not split further (64: 9% more fill)
@@ -174,7 +175,7 @@ def _vertex_dissection(mesh, levels: int) -> tuple[np.ndarray, np.ndarray]:
     order keeps the dissection's structure, with separators one node layer thick."""
     fe, cells = mesh.fe, np.asarray(mesh.cells, dtype=np.int64)
     nv = fe.n_vertices
-    corners = np.unique(cells[:, :nv])
+    corners = distinct(cells[:, :nv])
     where = np.full(mesh.n_nodes, -1, dtype=np.int64)
     where[corners] = np.arange(len(corners))
     local = where[cells[:, :nv]]
