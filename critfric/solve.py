@@ -2,13 +2,13 @@
 
 ``prepare`` does everything that does not depend on the Poisson ratio (mesh, the two stiffness
 parts, the contact DOF basis) so that a sweep over nu reuses it; ``solve_prepared`` does the
-rest. ``solve_case`` chains them: it is what ``critfric solve`` calls.
+rest. ``solve_case`` chains them, with the stiffness assembled at the case's nu alone: it is
+what ``critfric solve`` calls.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,17 +18,12 @@ import numpy as np
 
 from .case.schema import Case, as_case
 from .errors import CaseError, SolverError
-from .fem.assembly import assemble_elasticity, lame
+from .fem.assembly import assemble_elasticity, assemble_stiffness, lame
 from .fem.contact import ContactSystem, check_held, contact_layout, contact_system
 from .fem.contact3d import contact_layout3d, contact_system3d, slip_directions
-from .fem.elements import get_element
 from .fem.mesh import Mesh
-from .guards import check_dofs, polygon_footprint
-from .meshing.geometry import parallelogram, polygon, rectangle, validate
-from .meshing.gmshfile import check_file, file_mesh
-from .meshing.mesh import build_mesh, inline_mesh
-from .meshing.singular import contact_run, singular_points, state_junctions
-from .meshing.solid import check_solid, is_solid, solid_mesh
+from .guards import check_dofs
+from .meshing.from_case import make_mesh
 from .solvers import eigen
 from .solvers.backends import resolve_backend
 from .solvers.from_case import check_dimension, contact_state, plane_positions, slip_angles
@@ -37,7 +32,8 @@ from .solvers.ordering import dissect_beside, dissects
 
 @dataclass
 class Prepared:
-    """Mesh, stiffness parts and contact basis of a case: everything independent of nu."""
+    """Mesh, stiffness parts and contact basis of a case: everything independent of nu (or,
+    prepared for one Poisson ratio, the stiffness at that nu, kept in ``made_from``)."""
 
     mesh: Mesh
     system: ContactSystem
@@ -54,7 +50,7 @@ class Prepared:
     def check_case(self, case: Case) -> None:
         """Refuse a case whose geometry, mesh or boundary differ from the ones this was
         prepared from (its result would describe a mesh that was not solved)."""
-        for key, value in _mesh_inputs(case).items():
+        for key, value in (_mesh_inputs(case) | {"material.nu": case.material["nu"]}).items():
             if key in self.made_from and self.made_from[key] != value:
                 raise CaseError(f"is {value!r} in this case but {self.made_from[key]!r} in the "
                                 "prepared mesh; allowed: the prepared values (or prepare() "
@@ -149,112 +145,8 @@ class Result:
         }
 
 
-def geometry_polygon(case: Case):
-    """The validated polygon of a gmsh-meshed case."""
-    g = case.geometry
-    shape = g["shape"]
-    if shape == "square":
-        poly = rectangle(g["side"], g["side"])
-    elif shape == "rectangle":
-        poly = rectangle(g["width"], g["height"])
-    elif shape == "parallelogram":
-        poly = parallelogram(g["base"], g["height"], g["offset"])
-    else:
-        poly = polygon(np.asarray(g["vertices"], dtype=float), g["edge_names"])
-    return validate(poly)
-
-
-def singular_of(case: Case, poly=None):
-    """The singular points (:mod:`critfric.meshing.singular`) where a graded mesh of a
-    gmsh-meshed ``case`` refines: contact ends, corners where the boundary condition changes,
-    re-entrant corners and the junctions between the states of ``[contact] rules`` (a
-    ``source = 'coulomb'`` state is known only after the mesh: its junctions are not graded)."""
-    poly = geometry_polygon(case) if poly is None else poly
-    return singular_points(poly, case.boundary["contact"], case.boundary["dirichlet"],
-                           _junctions(case, poly))
-
-
-def _junctions(case: Case, poly) -> np.ndarray:
-    """Arc lengths along Gamma_C where the state of ``[contact] rules`` changes."""
-    c = case.contact
-    if c["source"] != "rules":
-        return np.zeros(0)
-    _, _, length = contact_run(poly, case.boundary["contact"])
-    return state_junctions(c["rules"], c["default"], case.solve["gamma"], length)
-
-
-def polygon_estimate(case: Case, poly=None) -> tuple[float, float]:
-    """The DOFs and contact nodes the mesh of a polygon case will have, estimated before
-    meshing (grading counted): what the resource guard is given."""
-    poly = geometry_polygon(case) if poly is None else poly
-    m = case.mesh
-    h, element, g = m["size"], m["element"], m["grading"]
-    footprint = polygon_footprint(poly.vertices)
-    contact = [n for n in case.boundary["contact"] if n in poly.edge_names]
-    seg = poly.segments[poly.edge_indices(contact)] if contact else np.zeros((0, 2, 2))
-    length = float(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1).sum())
-    order = get_element(element).order
-    n_contact = order * length / h
-    dofs = footprint.dofs(h, element)
-    if g is not None and g < 1:
-        sing = singular_of(case, poly)
-        radius = 0.5 * sing.run_length  # build_mesh grades over half the contact run
-        # a sector of 1.25 x the interior angle a point (graded_nodes counts sectors of
-        # 3 pi / 2); measured against gmsh (P1; g = 0.03 ... 0.3; square, inclined body,
-        # L-shape, mixed states): 1.2-3.3 x the extra nodes, overlapping zones counted twice
-        sectors = 1.25 * float(sing.angle.sum()) / (1.5 * math.pi)
-        dofs += 2.0 * footprint.graded_nodes(h, element, g, radius, points=sectors)
-        sides = 2 + 2 * len(sing.junctions)  # graded stretches of Gamma_C
-        n_contact += order * sides * radius * math.log(1 / g) / (h * (1 - g))
-    return dofs, n_contact
-
-
-def _checked_polygon(case: Case, max_dofs: int | None):
-    """The polygon of a case, after the resource guard on the mesh it will give (grading
-    and the dense stage on the contact nodes counted)."""
-    poly = geometry_polygon(case)
-    h, g = case.mesh["size"], case.mesh["grading"]
-    dofs, n_contact = polygon_estimate(case, poly)
-    check_dofs(dofs, element=case.mesh["element"], what=f"mesh.size = {h:g}"
-               + (f" graded by {g:g}" if g is not None else ""), source=case.source,
-               footprint=polygon_footprint(poly.vertices), max_dofs=max_dofs,
-               n_contact=n_contact, backend=case.solve["backend"])
-    return poly
-
-
-def preflight(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False) -> None:
-    """The checks of :func:`make_mesh` that need no mesh (geometry, resource estimate, .geo
-    safety): a sweep runs them for every mesh of its grid before it starts."""
-    shape = case.geometry["shape"]
-    if shape == "file":
-        check_file(case, trust_geo=trust_geo)
-    elif is_solid(case):
-        check_solid(case, max_dofs=max_dofs)
-    elif shape != "mesh":
-        _checked_polygon(case, max_dofs)
-
-
-def make_mesh(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False) -> Mesh:
-    """The mesh of a case; gmsh shapes pass the resource guard first (:mod:`.guards`)."""
-    g, m = case.geometry, case.mesh
-    if is_solid(case):
-        return solid_mesh(case, max_dofs=max_dofs)
-    if g["shape"] == "mesh":
-        cells = g["triangles"] if g["triangles"] is not None else g["quads"]
-        return inline_mesh(np.asarray(g["nodes"], dtype=float), np.asarray(cells),
-                           g["edges"], m["element"])
-    if g["shape"] == "file":
-        return file_mesh(case, max_dofs=max_dofs, trust_geo=trust_geo)
-    poly = _checked_polygon(case, max_dofs)
-    graded = m["grading"] is not None and not m["structured"]
-    return build_mesh(poly, size=m["size"], element=m["element"],
-                      structured=m["structured"], grading=m["grading"],
-                      contact=case.boundary["contact"], dirichlet=case.boundary["dirichlet"],
-                      junctions=_junctions(case, poly) if graded else ())
-
-
 def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
-            _plan: bool = False) -> Prepared:
+            _plan: bool = False, _single: bool = False) -> Prepared:
     """Mesh, assemble and classify the boundary of a case (independent of nu).
 
     Parameters
@@ -267,6 +159,9 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
         Start the eigen stage's factorization analysis from the stiffness pattern as soon as
         it is known (:func:`critfric.solvers.eigen.plan_dense`), for the one solve of
         ``case`` that follows.
+    _single
+        Assemble the stiffness at the case's Poisson ratio alone (2D; one matrix instead of
+        two parts and their sum): the result solves that Poisson ratio only.
     """
     t0 = time.perf_counter()
     try:
@@ -296,17 +191,27 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
     except SolverError:  # an unknown or missing backend: reported where the solver is chosen
         scipy = False
     ordering = dissect_beside(mesh) if scipy else None
+    single = lame(1.0, case.material["nu"]) if _single and mesh.dim == 2 else None
     try:
-        K_lam, K_G = assemble_elasticity(mesh, on_pattern=start if _plan else None)
+        on_pattern = start if _plan else None
+        if single is None:
+            K_lam, K_G = assemble_elasticity(mesh, on_pattern=on_pattern)
+        else:
+            K_lam, K_G = assemble_stiffness(mesh, *single, on_pattern=on_pattern), None
         t3 = time.perf_counter()
         # checked once the analysis has started (beside it), the mesh's diameter made there
         dirichlet = [name for name in case.boundary["dirichlet"] if name in mesh.facets]
         if dirichlet:  # unknown names are reported by contact_layout
             check_held(mesh, _facet_nodes(mesh, dirichlet), source=case.source)
         _ = mesh.diameter
-        make = contact_system3d if mesh.dim == 3 else contact_system
-        system = make(mesh, K_lam, K_G, contact=case.boundary["contact"],
-                      dirichlet=case.boundary["dirichlet"], source=case.source, layout=layout)
+        if mesh.dim == 3:
+            system = contact_system3d(mesh, K_lam, K_G, contact=case.boundary["contact"],
+                                      dirichlet=case.boundary["dirichlet"],
+                                      source=case.source, layout=layout)
+        else:
+            system = contact_system(mesh, K_lam, K_G, contact=case.boundary["contact"],
+                                    dirichlet=case.boundary["dirichlet"], source=case.source,
+                                    layout=layout, lame=single)
     except BaseException:
         _close(plan[0] if plan else None)
         raise
@@ -316,7 +221,9 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
     t4 = time.perf_counter()
     return Prepared(mesh, system, {"mesh": t1 - t0, "assembly": t3 - t2,
                                    "contact": t4 - t3 + t2 - t1},
-                    made_from=_mesh_inputs(case), plan=plan[0] if plan else None,
+                    made_from=_mesh_inputs(case) | ({"material.nu": case.material["nu"]}
+                                                    if single is not None else {}),
+                    plan=plan[0] if plan else None,
                     parts=(K_lam, K_G) if mesh.dim == 3 else None,
                     slip=_slip_inputs(case) if mesh.dim == 3 else None)
 
@@ -445,5 +352,6 @@ def solve_case(case: Case | dict | str | Path, *, overrides: dict[str, Any] | No
     case: a :class:`Case`, a case file path, a shipped case name ("unit-square"), or a dict
     of sections as in a case file ({"geometry": {"shape": "square"}, ...})."""
     case = as_case(case, overrides=overrides)
-    return solve_prepared(prepare(case, max_dofs=max_dofs, trust_geo=trust_geo, _plan=True),
+    return solve_prepared(prepare(case, max_dofs=max_dofs, trust_geo=trust_geo, _plan=True,
+                                  _single=True),
                           case, _release=True)

@@ -27,9 +27,9 @@ from critfric.guards import (
     memory_estimate,
     polygon_footprint,
 )
+from critfric.meshing.from_case import polygon_estimate, preflight
 from critfric.meshing.geometry import polygon, rectangle
 from critfric.meshing.mesh import build_mesh
-from critfric.solve import polygon_estimate, preflight
 
 L_SHAPE = [[0, 0], [2, 0], [2, 1], [1, 1], [1, 2], [0, 2]]
 MEASURED = Path(__file__).resolve().parent.parent / "benchmarks" / "memory2d.csv"

@@ -103,6 +103,21 @@ def assemble_elasticity(mesh: Mesh, *, on_pattern=None) -> tuple[sp.csr_matrix, 
     ``on_pattern(pattern)`` is called with that pattern, made from the cells alone, before
     any geometry (whose check of the cells may still refuse the mesh): work that needs only
     the sparsity starts there, while the values are computed."""
+    pattern, B, K_G = _stiffness_blocks(mesh, on_pattern)
+    return pattern.csr(B), pattern.csr(K_G)
+
+
+def assemble_stiffness(mesh: Mesh, lam: float, G: float, *, on_pattern=None) -> sp.csr_matrix:
+    """``lam K_lam + G K_G`` of :func:`assemble_elasticity` as one CSR matrix, combined node
+    block by node block before the DOF matrix is made (half the work of the parts and their
+    sum, for a single Poisson ratio; each entry the same number as the parts' sum)."""
+    pattern, B, K_G = _stiffness_blocks(mesh, on_pattern)
+    d = mesh.dim
+    return pattern.csr([[lam * B[k][m] + G * K_G[k][m] for m in range(d)] for k in range(d)])
+
+
+def _stiffness_blocks(mesh: Mesh, on_pattern) -> tuple[BlockPattern, list, list]:
+    """The pattern and the node-block entries [k][m] of K_lam and K_G."""
     element, d = mesh.fe, mesh.dim
     pattern = BlockPattern(_checked_cells(mesh), mesh.n_nodes, d)
     if on_pattern is not None:
@@ -120,7 +135,7 @@ def assemble_elasticity(mesh: Mesh, *, on_pattern=None) -> tuple[sp.csr_matrix, 
     # node block, K_G = B^T + tr(B) I for the dim x dim block B of K_lam (same sparsity)
     K_G = [[B[m][k] if k != m else sum(2 * B[j][j] if j == k else B[j][j] for j in range(d))
             for m in range(d)] for k in range(d)]
-    return pattern.csr(B), pattern.csr(K_G)
+    return pattern, B, K_G
 
 
 def _gradient_products(grads: np.ndarray, wdet: np.ndarray, k: int, m: int) -> np.ndarray:

@@ -34,7 +34,8 @@ class ContactSystem:
               direction of slip angle 0, :func:`.contact3d.plane_axes`).
     cn, ct  : (p,) positions, within the free DOFs, of the normal and tangential DOF of each
               contact node (3D: the DOF along the node's slip direction s).
-    K_lam, K_G : (m, m) CSR parts, K = lam * K_lam + G * K_G.
+    K_lam, K_G : (m, m) CSR parts, K = lam * K_lam + G * K_G; or K_lam the whole K at the
+              Lame parameters ``lame`` alone, and K_G None (a system for one Poisson ratio).
     fixed   : (d,) global DOF indices of the Dirichlet nodes (xy components).
     D_lam, D_G : (m, d) CSR parts of the coupling of the free DOFs (rows, n/t basis) to the
               Dirichlet DOFs (columns): prescribed values u_D add -K_FD u_D to the load.
@@ -56,6 +57,7 @@ class ContactSystem:
     D_G: sp.csr_matrix | None = None
     ce: np.ndarray | None = None
     slip: np.ndarray | None = None
+    lame: tuple[float, float] | None = None  # (lam, G) of K_lam where K_G is None
 
     @property
     def dim(self) -> int:
@@ -81,6 +83,12 @@ class ContactSystem:
         """lam K_lam + G K_G; parts of one sparsity (as assembled) combine entry by entry.
         ``keep_zeros``: keep that sparsity's zero entries (a pattern known in advance)."""
         A, B = self.K_lam, self.K_G
+        if B is None:  # assembled at these Lame parameters alone
+            self._check_lame(lam, G)
+            K = A.copy()
+            if not keep_zeros:
+                K.eliminate_zeros()
+            return K
         if (A.shape == B.shape and A.nnz == B.nnz and A.has_sorted_indices
                 and B.has_sorted_indices and np.array_equal(A.indptr, B.indptr)
                 and np.array_equal(A.indices, B.indices)):
@@ -106,7 +114,15 @@ class ContactSystem:
 
     def coupling(self, lam: float, G: float) -> sp.csr_matrix:
         """K_FD (m, d): free rows (n/t basis) x Dirichlet columns (xy)."""
+        if self.D_G is None:
+            self._check_lame(lam, G)
+            return self.D_lam.tocsr(copy=True)
         return (lam * self.D_lam + G * self.D_G).tocsr()
+
+    def _check_lame(self, lam: float, G: float) -> None:
+        if self.lame != (lam, G):
+            raise ValueError(f"this contact system was assembled at (lam, G) = {self.lame} "
+                             f"alone, not at {(lam, G)}")
 
     def from_xy(self, full: np.ndarray) -> np.ndarray:
         """Nodal vector(s) (..., dim * n_nodes) in xy(z) -> free-DOF vector(s) in the contact
@@ -216,31 +232,50 @@ def frame_rotation(n_nodes: int, nodes: np.ndarray, frames: np.ndarray) -> sp.cs
                          shape=(d * n_nodes, d * n_nodes)).tocsr()
 
 
-def rotated(K: sp.spmatrix, nodes: np.ndarray, normal, tangent, *others) -> list:
-    """Q^T K Q (Q: :func:`rotation`) without forming Q, for K and every matrix of ``others``
-    (same sparsity as K): the two rows, then the two columns, of each contact node combined
-    in place by the same two-term sums as the sparse products (the same numbers; exact zeros
-    stay stored). K must hold full 2 x 2 node blocks, as an assembled stiffness does."""
-    mats = [sp.csr_matrix(A, copy=True) for A in (K, *others)]
-    for A in mats:
-        A.sum_duplicates()  # sorted: the columns 2j and 2j + 1 of a block are adjacent
+def rotated_free(mats: list, nodes: np.ndarray, normal, tangent, fixed: np.ndarray) -> list:
+    """(A_FF, A_FD) (:func:`_split_free`) of Q^T A Q (Q: :func:`rotation`) for each matrix A
+    of ``mats`` (one sparsity), without forming Q: the free rows and columns are taken first,
+    then the two rows, then the two columns, of each contact node are combined in place by
+    the same two-term sums as the sparse products (the same numbers; exact zeros stay
+    stored). The matrices must hold full 2 x 2 node blocks, as an assembled stiffness does;
+    they are left as they are."""
+    mats = [_summed(A) for A in mats]  # sorted: the columns 2j and 2j + 1 of a block adjacent
     ip, col = mats[0].indptr, mats[0].indices
     if any(not (np.array_equal(A.indptr, ip) and np.array_equal(A.indices, col))
            for A in mats[1:]):
-        raise ValueError("rotated: the matrices must have the same sparsity")
+        raise ValueError("rotated_free: the matrices must have the same sparsity")
+    if np.any(fixed[2 * nodes]) or np.any(fixed[2 * nodes + 1]):
+        raise RuntimeError("internal: a contact node has a Dirichlet DOF")
+    split = _split_free(mats, fixed)  # new arrays: combined in place below
     R = np.column_stack([normal, tangent])  # R[a, b]: xy component a of n (b = 0), t (b = 1)
-    length = ip[2 * nodes + 1] - ip[2 * nodes]
-    contact = np.zeros(K.shape[1], dtype=bool)
-    contact[2 * nodes] = True
-    col0 = np.flatnonzero(contact[col])  # entries of the columns 2j of the contact nodes
-    if (np.any(ip[2 * nodes + 2] - ip[2 * nodes + 1] != length)
-            or np.any(col[col0 + 1] != col[col0] + 1)):
+    r = np.cumsum(~fixed)[2 * nodes] - 1  # the rows 2i (and 2i + 1 = r + 1) of the free DOFs
+    ff = split[0][0]
+    contact = np.zeros(ff.shape[1], dtype=bool)
+    contact[r] = True
+    col0 = np.flatnonzero(contact[ff.indices])  # entries of the columns 2j of the contact nodes
+    rows = []
+    for A in split[0]:  # the same rows of A_FF and A_FD: rows 2i, 2i + 1
+        length = A.indptr[r + 1] - A.indptr[r]
+        if np.any(A.indptr[r + 2] - A.indptr[r + 1] != length):
+            raise RuntimeError("internal: the stiffness is not made of full 2 x 2 node blocks")
+        row0 = ranges(A.indptr[r], length)  # entries of the rows 2i of the contact nodes
+        rows.append((row0, row0 + np.repeat(length, length)))
+    if np.any(ff.indices[col0 + 1] != ff.indices[col0] + 1):
         raise RuntimeError("internal: the stiffness is not made of full 2 x 2 node blocks")
-    row0 = ranges(ip[2 * nodes], length)  # entries of the rows 2i of the contact nodes
-    for A in mats:
-        _combine(A.data, row0, row0 + np.repeat(length, length), R)  # rows 2i, 2i + 1
-        _combine(A.data, col0, col0 + 1, R)  # then columns 2j, 2j + 1
-    return mats
+    for FF, FD in split:
+        for A, (e0, e1) in zip((FF, FD), rows):
+            _combine(A.data, e0, e1, R)  # rows 2i, 2i + 1
+        _combine(FF.data, col0, col0 + 1, R)  # then columns 2j, 2j + 1 (none is Dirichlet)
+    return split
+
+
+def _summed(A: sp.spmatrix) -> sp.csr_matrix:
+    """A as CSR with sorted, summed entries (a copy only where A is not so already)."""
+    A = sp.csr_matrix(A)
+    if not A.has_canonical_format:
+        A = A.copy()
+        A.sum_duplicates()
+    return A
 
 
 def _combine(data: np.ndarray, e0: np.ndarray, e1: np.ndarray, R: np.ndarray) -> None:
@@ -325,25 +360,33 @@ def contact_layout(mesh: Mesh, *, contact: list[str], dirichlet: list[str],
     return Layout(nodes, normal, tangent, fixed)
 
 
-def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix, *, contact: list[str],
-                   dirichlet: list[str], source: str = "",
-                   layout: Layout | None = None) -> ContactSystem:
+def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix | None, *,
+                   contact: list[str], dirichlet: list[str], source: str = "",
+                   layout: Layout | None = None,
+                   lame: tuple[float, float] | None = None) -> ContactSystem:
     """Classify the boundary nodes (or take ``layout``, :func:`contact_layout` of the same
-    arguments) and restrict the stiffness parts to the free DOFs."""
+    arguments) and restrict the stiffness parts to the free DOFs. K_G None: K_lam is the
+    whole stiffness at the Lame parameters ``lame`` (:func:`.assembly.assemble_stiffness`)."""
+    if (K_G is None) == (lame is None):
+        raise ValueError("contact_system: give K_G or the Lame parameters of K_lam, not both")
     if layout is None:
         layout = contact_layout(mesh, contact=contact, dirichlet=dirichlet, source=source)
     nodes, normal, tangent, fixed = layout.nodes, layout.normal, layout.tangent, layout.fixed
     position = layout.position
     # K_FF and K_FD (Q is the identity on the Dirichlet DOFs) of Q^T K Q, for each part
-    try:  # assembled parts share one sparsity: one pass of index work for both
-        groups = [rotated(K_lam, nodes, normal, tangent, K_G)]
-    except ValueError:
-        groups = [rotated(K, nodes, normal, tangent) for K in (K_lam, K_G)]
-    parts, coupling = zip(*(ff_fd for mats in groups for ff_fd in _split_free(mats, fixed)))
+    if K_G is None:
+        groups = [[K_lam]]
+    else:  # assembled parts share one sparsity: one pass of index work for both
+        A, B = _summed(K_lam), _summed(K_G)
+        same = (np.array_equal(A.indptr, B.indptr) and np.array_equal(A.indices, B.indices))
+        groups = [[A, B]] if same else [[A], [B]]
+    parts, coupling = zip(*(ff_fd for mats in groups
+                            for ff_fd in rotated_free(mats, nodes, normal, tangent, fixed)))
+    parts, coupling = parts + (None,), coupling + (None,)  # K_G None: nothing second
     return ContactSystem(mesh=mesh, free=layout.free, nodes=nodes, normal=normal,
                          tangent=tangent, cn=position[2 * nodes], ct=position[2 * nodes + 1],
                          K_lam=parts[0], K_G=parts[1], fixed=np.flatnonzero(fixed),
-                         D_lam=coupling[0], D_G=coupling[1])
+                         D_lam=coupling[0], D_G=coupling[1], lame=lame)
 
 
 def check_held(mesh, dirichlet_nodes: np.ndarray, *, source: str | None = None) -> None:

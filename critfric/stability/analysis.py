@@ -304,5 +304,6 @@ def stability_case(case: Case | dict | str | Path, *, overrides: dict[str, Any] 
 
     case: a :class:`Case`, a case file path, a shipped case name, or a dict of sections."""
     case = as_case(case, overrides=overrides)
-    return stability_prepared(prepare(case, max_dofs=max_dofs, trust_geo=trust_geo, _plan=True),
+    return stability_prepared(prepare(case, max_dofs=max_dofs, trust_geo=trust_geo, _plan=True,
+                                      _single=True),
                               case)

@@ -32,8 +32,9 @@ from ..case.schema import SWEEP_GRADING, Case, from_dict
 from ..errors import CaseError
 from ..files import sweepfile
 from ..guards import usable_cpus
+from ..meshing.from_case import preflight, singular_of
 from ..meshing.solid import is_solid
-from ..solve import Prepared, preflight, prepare, singular_of, solve_prepared, turned
+from ..solve import Prepared, prepare, solve_prepared, turned
 from ..stability import stability_prepared
 from . import workers
 from .directions import (

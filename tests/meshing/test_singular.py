@@ -8,10 +8,10 @@ import pytest
 import critfric
 from critfric.case.schema import from_dict
 from critfric.errors import CaseError
+from critfric.meshing.from_case import singular_of
 from critfric.meshing.geometry import polygon, rectangle
 from critfric.meshing.mesh import build_mesh
 from critfric.meshing.singular import singular_points, state_junctions
-from critfric.solve import singular_of
 
 #: a 2 x 1 block: stuck on [0, 0.5], slip + on [0.5, 1.3], slip - on [1.3, 2] of its base
 MIXED = {"geometry": {"shape": "rectangle", "width": 2.0, "height": 1.0},
