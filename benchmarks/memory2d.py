@@ -15,7 +15,7 @@ fresh process of the install that has the backend (PARDISO: this checkout's ``.v
 ``fast`` extra; SciPy: its ``.venv-nofast``; else this interpreter; the code measured is
 ``--root``'s), its peak RSS from wait4, and the estimate
 :func:`critfric.guards.memory_estimate` gives for the DOFs and contact nodes that
-:func:`critfric.solve.polygon_estimate` predicts before meshing (the solve's own guard). One
+:func:`critfric.meshing.from_case.polygon_estimate` predicts before meshing (the solve's own guard). One
 solve at a time; each child is capped at ``--mem-limit`` GB of address space (default
 box3d.MEM_LIMIT_GB; SciPy reserves about 3 x its resident memory: P2 at 4 M DOFs needs more).
 """
@@ -54,7 +54,7 @@ def _case(element: str, size: float | None = None, backend: str = "auto"):
 def mesh_size(element: str, dofs: float) -> float:
     """The mesh size whose estimated DOF count on the unit square is ``dofs``."""
     from critfric.guards import polygon_footprint
-    from critfric.solve import geometry_polygon
+    from critfric.meshing.from_case import geometry_polygon
 
     square = geometry_polygon(_case(element))
     return float(f"{polygon_footprint(square.vertices).finest_size(dofs, element):.4g}")
@@ -63,7 +63,7 @@ def mesh_size(element: str, dofs: float) -> float:
 def estimate(element: str, size: float, backend: str) -> dict:
     """What the guard is given before meshing, and the peak it estimates (MB)."""
     from critfric.guards import memory_estimate
-    from critfric.solve import polygon_estimate
+    from critfric.meshing.from_case import polygon_estimate
 
     dofs, contact = polygon_estimate(_case(element, size, backend))
     try:

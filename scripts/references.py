@@ -30,6 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import critfric
 from critfric import solve as solve_module
+from critfric.meshing import from_case
 from critfric.meshing import mesh as meshing
 from critfric.sweep.extrapolate import richardson
 
@@ -57,6 +58,7 @@ def solve(case, element: str, size: float, count: int = 1):
             "solve.count": count}
     with mock.patch.object(meshing, "_set_grading", _radial), \
             mock.patch.object(meshing, "_refinements", lambda poly, h: 0), \
+            mock.patch.object(from_case, "check_dofs", lambda *a, **k: None), \
             mock.patch.object(solve_module, "check_dofs", lambda *a, **k: None):
         return critfric.solve_case(case, overrides=over)
 
