@@ -56,6 +56,7 @@ SPLIT_WORKERS = 2  # pieces factored at once (threads; at most the CPUs this pro
 #: 16.8 against 23.8, 60 columns 14.5 against 20.7 (8 columns 26.9 against 25.3); 50 k rows,
 #: 16 columns 2.6 against 3.5; 24 k rows, 16 columns 1.5 against 1.5
 SOLVE_PART, SOLVE_SPLIT_ROWS = 8, 50_000
+SYMMETRIZE_ROWS = 256  # _trailing_product mirrors S's lower triangle this many rows at a time
 REFINE_STEPS = 3  # ScipySchur.extend: refinement steps on the contact rows (1-2 are used)
 PREFERENCE = ("pardiso", "scipy")  # "auto": fastest first
 
@@ -205,11 +206,9 @@ class ScipySchur:
             raise SolverError(f"the sparse factorization failed ({exc}): {_SINGULAR}") from None
         tail = np.arange(n - k, n)
         if np.array_equal(lu.perm_c[tail], tail) and np.array_equal(lu.perm_r[tail], tail):
-            blocks = trailing_blocks(lu, k)  # read in place (lu.L, lu.U copy whole factors)
-            if blocks is None:
-                blocks = (lu.L[n - k:, n - k:].toarray(), lu.U[n - k:, n - k:].toarray())
-            S = _trailing_product(*blocks)
-            blocks = None  # three k x k arrays at most
+            # read in place (lu.L, lu.U copy whole factors); two k x k arrays at most
+            S = _trailing_product(list(trailing_blocks(lu, k) or (
+                lu.L[n - k:, n - k:].toarray(), lu.U[n - k:, n - k:].toarray())))
         else:  # SuperLU reordered the tail after all: S^-1 from k solves
             E = np.zeros((n, k))
             E[tail, np.arange(k)] = 1.0
@@ -240,19 +239,30 @@ class ScipySchur:
         return x
 
 
-def _trailing_product(L: np.ndarray, U: np.ndarray) -> np.ndarray:
-    """S = L U for the trailing blocks of a symmetric positive definite matrix's factors
-    without pivoting (L unit lower, U = D L^T upper): L D L^T, by LAPACK's lauum on the
-    scaled factor reversed (J M J upper, M = L D^1/2: (J M J)(J M J)^T = J S J), a third of a
-    matrix product's operations (2478 rows: 0.12 s against 0.54 s, one thread); the product
-    itself where a pivot is not positive."""
-    d = np.diag(U)
+def _trailing_product(blocks: list) -> np.ndarray:
+    """S = L U for the trailing blocks ``blocks`` = [L, U] of a symmetric positive definite
+    matrix's factors without pivoting (L unit lower, U = D L^T upper): L D L^T, by LAPACK's
+    lauum on the scaled factor reversed (J M J upper, M = L D^1/2: (J M J)(J M J)^T = J S J),
+    a third of a matrix product's operations (2478 rows: 0.12 s against 0.54 s, one thread);
+    the product itself where a pivot is not positive. ``blocks`` is emptied: each block is
+    freed once read (two k x k arrays at most, where the product holds three)."""
+    L, U = blocks
+    blocks.clear()
+    d = np.diag(U).copy()
     if not np.all(d > 0):
         return L @ U
-    R = np.asfortranarray((L * np.sqrt(d))[::-1, ::-1])  # upper (L: zeros above)
+    del U
+    k = len(d)
+    R = np.empty((k, k), order="F")
+    np.multiply(L[::-1, ::-1], np.sqrt(d)[::-1], out=R)  # J M J: upper (L: zeros above)
+    del L
     out, _ = la.lapack.dlauum(R, lower=0, overwrite_c=True)  # fails on bad arguments alone
-    S = out[::-1, ::-1]  # S's lower triangle, zeros above
-    S += np.tril(S, -1).T
+    S = out[::-1, ::-1]  # S's lower triangle, zeros above: the upper one mirrored in place
+    for i in range(0, k, SYMMETRIZE_ROWS):
+        j = min(i + SYMMETRIZE_ROWS, k)
+        diagonal = S[i:j, i:j]
+        diagonal += np.tril(diagonal, -1).T
+        S[i:j, j:] = S[j:, i:j].T
     return S
 
 

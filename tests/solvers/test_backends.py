@@ -365,7 +365,7 @@ def test_a_released_factor_does_not_wait_for_the_mkl_thread(monkeypatch):
     assert out.stdout.split() == ["exit", "released"]
 
 
-@pytest.mark.parametrize("k", [1, 2, 9, 200])
+@pytest.mark.parametrize("k", [1, 2, 9, 200, 600])
 def test_trailing_product_is_l_times_u(k):
     """The trailing blocks' product L U of a symmetric positive definite factorization (L unit
     lower, U = D L^T) by lauum equals the plain product to rounding, and is symmetric; a
@@ -376,11 +376,15 @@ def test_trailing_product_is_l_times_u(k):
     c = la.cholesky(A, lower=True)
     d = np.diag(c)
     L, U = np.asfortranarray(c / d), np.asfortranarray(d[:, None] * c.T)
-    S = linsolve._trailing_product(L, U)
+    blocks = [L, U]
+    S = linsolve._trailing_product(blocks)
+    assert blocks == []  # freed once read
     assert np.abs(S - L @ U).max() <= 1e-14 * np.abs(A).max()
     np.testing.assert_array_equal(S, S.T)
+    lower = np.tril(S)  # the mirrored upper triangle, block by block: what S + tril(S, -1)^T is
+    np.testing.assert_array_equal(S, lower + np.tril(lower, -1).T)
     U[0, 0] = -U[0, 0]
-    np.testing.assert_array_equal(linsolve._trailing_product(L, U), L @ U)
+    np.testing.assert_array_equal(linsolve._trailing_product([L, U]), L @ U)
 
 
 @pytest.mark.parametrize("density", [0.0, 0.003, 0.05])
