@@ -6,7 +6,7 @@ triangles and 1 for quads, k = 4 for P2/Q2), the DOFs are twice that (three time
 3D, from :class:`critfric.meshing.solid.SolidFootprint`), and the peak memory of a solve is
 a model per backend and element fitted to measured peaks (:func:`memory_estimate`; 2D at
 MODEL_2D: 1.05-1.13 x the peaks of P1/P2 unit squares from 0.1 to 4.2 M DOFs on PARDISO,
-1.05-1.22 x on SciPy; 3D at FILL_3D). A solve above the memory available (or above
+1.05-1.26 x on SciPy; 3D at FILL_3D). A solve above the memory available (or above
 ``max_dofs`` when given) is a :class:`CaseError` that gives the estimate and the finest mesh
 size that fits.
 
@@ -34,26 +34,28 @@ DENSE_COPIES = 6  # 2D dense stage: S, its Cholesky factor, T, eigenvectors, wor
 SPLIT_MIN_ROWS = 400_000  # SciPy's Schur complement by substructuring from here on (memory)
 
 #: 2D: peak bytes of a solve with n DOFs and p contact nodes, fitted to the peak RSS of
-#: `critfric solve unit-square` (benchmarks/memory2d.py, 60 runs in benchmarks/memory2d.csv:
+#: `critfric solve unit-square` (benchmarks/memory2d.py, 58 runs in benchmarks/memory2d.csv:
 #: P1 and P2 from 0.1 to 4.2 M DOFs, Q1 and Q2 from 0.1 to 2.1 M, both backends):
 #: MODEL_2D[backend][element] = (base, per DOF, fill) gives base + per DOF n (mesh, assembly,
 #: vectors) + fill n log2 n (the factor in a nested-dissection order), plus the dense stage
 #: (:func:`dense_bytes`). SciPy's one factorization of the whole ("scipy whole", below
 #: SPLIT_MIN_ROWS: :func:`model_key_2d`) needs more than its Schur complement by pieces above
-#: (0.97 against 1.15 GB at 0.55 and 0.38 M DOFs, P1). Linear programming (memory2d.py
+#: (1.02 against 1.20 GB at 0.55 and 0.38 M DOFs, P1). Linear programming (memory2d.py
 #: --fit): every estimate, from the DOFs and contact nodes predicted before meshing and from
 #: the mesh made, at least 1.05 x its peak (repeat runs differ by up to 1.5% on PARDISO, 5%
 #: on SciPy), the largest ratio least. Before meshing, the estimates are 1.05-1.13 x the
-#: peaks of P1 and P2 on PARDISO, 1.05-1.22 x on SciPy, 1.05-1.25 x for Q1 and Q2 (whose
-#: DOF count is estimated up to 18% low); from the mesh made, 1.05-1.29 x. The same fit to
-#: the runs up to 2.2 M DOFs alone gave 1.06-1.23 x the four peaks at 4.18 M (P1, P2).
+#: peaks of P1 and P2 on PARDISO, 1.05-1.26 x on SciPy, 1.05-1.27 x for Q1 and Q2 (whose
+#: DOF count is estimated up to 18% low); from the mesh made, 1.06-1.29 x for P1 and P2,
+#: up to 1.33 x for SciPy's Q2 (its peaks grow slower than its DOFs). The SciPy runs were
+#: measured again on the current code: their peaks are 7% below to 10% above the earlier
+#: runs'.
 MODEL_2D = {
     "pardiso": {"P1": (132e6, 1980.0, 3.79), "P2": (183e6, 1270.0, 62.6),
                 "Q1": (193e6, 178.0, 115.0), "Q2": (204e6, 3260.0, 0.0)},
-    "scipy": {"P1": (194e6, 866.0, 37.2), "P2": (142e6, 2940.0, 0.0),
-              "Q1": (227e6, 1930.0, 0.0), "Q2": (524e6, 2980.0, 0.0)},
-    "scipy whole": {"P1": (102e6, 162.0, 159.0), "P2": (38.1e6, 4360.0, 0.0),
-                    "Q1": (0.0, 3890.0, 9.75), "Q2": (74.9e6, 0.0, 222.0)},
+    "scipy": {"P1": (299e6, 126.0, 70.3), "P2": (183e6, 3170.0, 0.0),
+              "Q1": (143e6, 1940.0, 0.0), "Q2": (99.8e6, 3540.0, 0.0)},
+    "scipy whole": {"P1": (82.1e6, 2170.0, 59.9), "P2": (37.3e6, 1100.0, 177.0),
+                    "Q1": (0.0, 2510.0, 93.4), "Q2": (80.1e6, 0.0, 221.0)},
 }
 _CELL_AREA = {"triangle": math.sqrt(3) / 2, "quad": 1.0}  # cell area / size^2
 
