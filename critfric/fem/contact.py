@@ -368,7 +368,8 @@ def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix | None, *,
     arguments) and restrict the stiffness parts to the free DOFs. K_G None: K_lam is the
     whole stiffness at the Lame parameters ``lame`` (:func:`.assembly.assemble_stiffness`)."""
     if (K_G is None) == (lame is None):
-        raise ValueError("contact_system: give K_G or the Lame parameters of K_lam, not both")
+        raise ValueError("contact_system: give K_G, or the Lame parameters of a whole K_lam "
+                         "(exactly one of the two)")
     if layout is None:
         layout = contact_layout(mesh, contact=contact, dirichlet=dirichlet, source=source)
     nodes, normal, tangent, fixed = layout.nodes, layout.normal, layout.tangent, layout.fixed
