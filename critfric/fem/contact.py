@@ -10,6 +10,7 @@ slip (s) and a third (e = n x s) DOF.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -35,7 +36,8 @@ class ContactSystem:
     cn, ct  : (p,) positions, within the free DOFs, of the normal and tangential DOF of each
               contact node (3D: the DOF along the node's slip direction s).
     K_lam, K_G : (m, m) CSR parts, K = lam * K_lam + G * K_G; or K_lam the whole K at the
-              Lame parameters ``lame`` alone, and K_G None (a system for one Poisson ratio).
+              Lame parameters ``lame``, and K_G None (a system for one Poisson ratio: any
+              (lam, G) proportional to ``lame``, i.e. any E).
     fixed   : (d,) global DOF indices of the Dirichlet nodes (xy components).
     D_lam, D_G : (m, d) CSR parts of the coupling of the free DOFs (rows, n/t basis) to the
               Dirichlet DOFs (columns): prescribed values u_D add -K_FD u_D to the load.
@@ -83,9 +85,9 @@ class ContactSystem:
         """lam K_lam + G K_G; parts of one sparsity (as assembled) combine entry by entry.
         ``keep_zeros``: keep that sparsity's zero entries (a pattern known in advance)."""
         A, B = self.K_lam, self.K_G
-        if B is None:  # assembled at these Lame parameters alone
-            self._check_lame(lam, G)
-            K = A.copy()
+        if B is None:  # assembled at one Poisson ratio: any E by a scale
+            scale = self._scale(lam, G)
+            K = A.copy() if scale == 1.0 else A * scale
             if not keep_zeros:
                 K.eliminate_zeros()
             return K
@@ -115,14 +117,18 @@ class ContactSystem:
     def coupling(self, lam: float, G: float) -> sp.csr_matrix:
         """K_FD (m, d): free rows (n/t basis) x Dirichlet columns (xy)."""
         if self.D_G is None:
-            self._check_lame(lam, G)
-            return self.D_lam.tocsr(copy=True)
+            scale = self._scale(lam, G)
+            return self.D_lam.tocsr(copy=True) if scale == 1.0 else (self.D_lam * scale).tocsr()
         return (lam * self.D_lam + G * self.D_G).tocsr()
 
-    def _check_lame(self, lam: float, G: float) -> None:
-        if self.lame != (lam, G):
-            raise ValueError(f"this contact system was assembled at (lam, G) = {self.lame} "
-                             f"alone, not at {(lam, G)}")
+    def _scale(self, lam: float, G: float) -> float:
+        """s with (lam, G) = s ``lame`` (the same Poisson ratio, any E); ValueError if none."""
+        lam0, G0 = self.lame
+        scale = 1.0 if (lam, G) == (lam0, G0) else G / G0
+        if not math.isclose(lam, scale * lam0, rel_tol=1e-12, abs_tol=1e-300):
+            raise ValueError(f"this contact system was assembled at (lam, G) = {self.lame}, "
+                             f"for one Poisson ratio; not at {(lam, G)}")
+        return scale
 
     def from_xy(self, full: np.ndarray) -> np.ndarray:
         """Nodal vector(s) (..., dim * n_nodes) in xy(z) -> free-DOF vector(s) in the contact

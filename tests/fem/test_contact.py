@@ -70,7 +70,15 @@ def test_stiffness_at_one_poisson_ratio_is_the_parts_sum(element):
         np.testing.assert_allclose(a.data, b.data, rtol=0, atol=1e-15 * np.abs(b.data).max())
     np.testing.assert_allclose(one.coupling(lam, G).toarray(), parts.coupling(lam, G).toarray(),
                                atol=1e-15 * np.abs(b.data).max())
-    with pytest.raises(ValueError, match="assembled at"):
+    for E in (210e9, 3e-5):  # another E: the same Poisson ratio, scaled
+        scaled, reference = one.stiffness(*lame(E, 0.27)), parts.stiffness(*lame(E, 0.27))
+        np.testing.assert_array_equal(scaled.indices, reference.indices)
+        np.testing.assert_allclose(scaled.data, reference.data, rtol=0,
+                                   atol=1e-14 * np.abs(reference.data).max())
+        np.testing.assert_allclose(one.coupling(*lame(E, 0.27)).toarray(),
+                                   parts.coupling(*lame(E, 0.27)).toarray(), rtol=0,
+                                   atol=1e-14 * np.abs(reference.data).max())
+    with pytest.raises(ValueError, match="one Poisson ratio"):
         one.stiffness(*lame(1.0, 0.3))
     with pytest.raises(ValueError):
         contact_system(mesh, K, None, **BOUNDARY)  # which Lame parameters?

@@ -167,8 +167,11 @@ def test_mixed_state_dense_and_arpack_agree_and_count_is_p0():
     assert abs(plain.positive[0] - dense.positive[0]) > 1e-3  # the state matters
 
 
-def test_state_from_the_coulomb_solution():
-    """[contact] source = 'coulomb': the eigenproblem of the state of the static solution."""
+@pytest.mark.parametrize("E", [1.0, 210e9])
+def test_state_from_the_coulomb_solution(E):
+    """[contact] source = 'coulomb': the eigenproblem of the state of the static solution
+    (solve_case's stiffness, assembled at the case's nu alone, serves the static problem at
+    the case's E)."""
     text = square_case(size=0.05) + """
 [load]
 friction = 1.0
@@ -176,7 +179,7 @@ displacement = { top = [[-0.002, 0.0, 0.0], [-0.03, 0.045, 0.0]] }
 [contact]
 source = "coulomb"
 """
-    case = loads_case(text)
+    case = loads_case(text).with_overrides({"material.E": E})
     prep = prepare(case)
     sol = coulomb.solve(static_problem(case, prep))
     state = contact_state(case, prep.system)
