@@ -238,9 +238,10 @@ def frame_rotation(n_nodes: int, nodes: np.ndarray, frames: np.ndarray) -> sp.cs
                          shape=(d * n_nodes, d * n_nodes)).tocsr()
 
 
-def rotated_free(mats: list, nodes: np.ndarray, normal, tangent, fixed: np.ndarray) -> list:
-    """(A_FF, A_FD) (:func:`_split_free`) of Q^T A Q (Q: :func:`rotation`) for each matrix A
-    of ``mats`` (one sparsity), without forming Q: the free rows and columns are taken first,
+def rotated_free(mats: list, layout: Layout) -> list:
+    """(A_FF, A_FD) (:func:`_split_free`) of Q^T A Q (Q: :func:`rotation` of the ``layout``'s
+    contact nodes) for each matrix A of ``mats`` (one sparsity; ValueError otherwise), without
+    forming Q: the free rows and columns are taken first,
     then the two rows, then the two columns, of each contact node are combined in place by
     the same two-term sums as the sparse products (the same numbers; exact zeros stay
     stored). The matrices must hold full 2 x 2 node blocks, as an assembled stiffness does;
@@ -250,11 +251,13 @@ def rotated_free(mats: list, nodes: np.ndarray, normal, tangent, fixed: np.ndarr
     if any(not (np.array_equal(A.indptr, ip) and np.array_equal(A.indices, col))
            for A in mats[1:]):
         raise ValueError("rotated_free: the matrices must have the same sparsity")
-    if np.any(fixed[2 * nodes]) or np.any(fixed[2 * nodes + 1]):
+    nodes, position = layout.nodes, layout.position
+    r = position[2 * nodes]  # the rows 2i (and 2i + 1 = r + 1) of the free DOFs
+    if np.any(r < 0) or np.any(position[2 * nodes + 1] != r + 1):
         raise RuntimeError("internal: a contact node has a Dirichlet DOF")
-    split = _split_free(mats, fixed)  # new arrays: combined in place below
-    R = np.column_stack([normal, tangent])  # R[a, b]: xy component a of n (b = 0), t (b = 1)
-    r = np.cumsum(~fixed)[2 * nodes] - 1  # the rows 2i (and 2i + 1 = r + 1) of the free DOFs
+    split = _split_free(mats, layout.fixed)  # new arrays: combined in place below
+    # R[a, b]: xy component a of n (b = 0), t (b = 1)
+    R = np.column_stack([layout.normal, layout.tangent])
     ff = split[0][0]
     contact = np.zeros(ff.shape[1], dtype=bool)
     contact[r] = True
@@ -381,14 +384,12 @@ def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix | None, *,
     nodes, normal, tangent, fixed = layout.nodes, layout.normal, layout.tangent, layout.fixed
     position = layout.position
     # K_FF and K_FD (Q is the identity on the Dirichlet DOFs) of Q^T K Q, for each part
-    if K_G is None:
-        groups = [[K_lam]]
-    else:  # assembled parts share one sparsity: one pass of index work for both
-        A, B = _summed(K_lam), _summed(K_G)
-        same = (np.array_equal(A.indptr, B.indptr) and np.array_equal(A.indices, B.indices))
-        groups = [[A, B]] if same else [[A], [B]]
-    parts, coupling = zip(*(ff_fd for mats in groups
-                            for ff_fd in rotated_free(mats, nodes, normal, tangent, fixed)))
+    mats = [K_lam] if K_G is None else [K_lam, K_G]
+    try:  # assembled parts share one sparsity: one pass of index work for both
+        split = rotated_free(mats, layout)
+    except ValueError:
+        split = [ff_fd for A in mats for ff_fd in rotated_free([A], layout)]
+    parts, coupling = zip(*split)
     parts, coupling = parts + (None,), coupling + (None,)  # K_G None: nothing second
     return ContactSystem(mesh=mesh, free=layout.free, nodes=nodes, normal=normal,
                          tangent=tangent, cn=position[2 * nodes], ct=position[2 * nodes + 1],
