@@ -52,7 +52,7 @@ def _row_norm(L: sp.spmatrix, b: np.ndarray, c: np.ndarray) -> float:
     return float(max(rows.max(), np.abs(c).sum()))
 
 
-def orthonormal(W: np.ndarray) -> np.ndarray:
+def orthonormal(W: np.ndarray, *, overwrite: bool = False) -> np.ndarray:
     """An orthonormal basis of the span of the columns of W, directions below ``RANK_TOL`` of
     the largest dropped: W R with R from the small Gram matrix G = W^T W, its columns scaled
     to unit norm (D G D, D = diag(G)^-1/2), as (D G D)^-1/2, then the same once more on the
@@ -62,7 +62,10 @@ def orthonormal(W: np.ndarray) -> np.ndarray:
     basis at 295 k DOFs, 2.4e-3 at 1 k, whose columns are nearly dependent before the drop):
     the sharpening's projections onto the span's complement then kept parts of the basis,
     and its enlarged models grew ill-conditioned. The second pass starts from columns of
-    condition ~1 and ends orthonormal to ~1e-13 (2e-13 measured at 295 k DOFs)."""
+    condition ~1 and ends orthonormal to ~1e-13 (2e-13 measured at 295 k DOFs).
+    ``overwrite`` (W contiguous, not needed after): the result, row-major, is written in
+    W's memory, already touched (a new n x 80 array's first touch costs about as much as
+    the product)."""
     G = W.T @ W
     d = np.sqrt(np.diag(G))
     live = np.flatnonzero(d > 0)
@@ -75,7 +78,11 @@ def orthonormal(W: np.ndarray) -> np.ndarray:
     if Q.shape[1] == 0:
         return Q
     lam, U = la.eigh(Q.T @ Q)
-    return Q @ ((U / np.sqrt(lam)) @ U.T)
+    square = (U / np.sqrt(lam)) @ U.T
+    if not (overwrite and (W.flags.c_contiguous or W.flags.f_contiguous)):
+        return Q @ square
+    out = W.ravel(order="K")[:Q.size].reshape(Q.shape)
+    return np.matmul(Q, square, out=out)
 
 
 def _small(r: np.ndarray, x: np.ndarray, norm: float, tol: float) -> bool:
@@ -104,13 +111,22 @@ class Deflated:
         bc = np.column_stack([b, c])
         for _ in range(2):  # b and c outside the modes' span ("twice is enough")
             bc -= self.Q @ (self.Q.T @ bc)
-        self.W = np.column_stack([self.Q, orthonormal(bc)])
-        m = self.W.shape[1]
+        self.E = orthonormal(bc)  # Z = [Q, E], kept apart (Q is the larger: not copied)
+        m = self.Q.shape[1] + self.E.shape[1]
         coarse = np.zeros((m + 1, m + 1))
-        coarse[:m, :m] = self.W.T @ (self.L @ self.W)
-        coarse[:m, m] = self.W.T @ b
-        coarse[m, :m] = c @ self.W
+        coarse[:m, :m] = np.hstack([self._Zt(self.L @ self.Q), self._Zt(self.L @ self.E)])
+        coarse[:m, m] = self._Zt(b)
+        coarse[m, :m] = self._Zt(c)
         self.coarse = la.lu_factor(coarse)
+
+    def _Zt(self, u: np.ndarray) -> np.ndarray:
+        """Z^T u."""
+        return np.concatenate([self.Q.T @ u, self.E.T @ u])
+
+    def _Z(self, y: np.ndarray) -> np.ndarray:
+        """Z y."""
+        q = self.Q.shape[1]
+        return self.Q @ y[:q] + self.E @ y[q:]
 
     def _apply(self, x: np.ndarray, transpose: bool) -> np.ndarray:
         """A x (A^T x): [L x + b s; c^T x] for x = [x; s]."""
@@ -124,9 +140,9 @@ class Deflated:
 
     def _coarse(self, u: np.ndarray, transpose: bool) -> np.ndarray:
         """Z (Z^T A Z)^-1 Z^T u (transposed: with (Z^T A Z)^-T)."""
-        y = la.lu_solve(self.coarse, np.concatenate([self.W.T @ u[:-1], u[-1:]]),
+        y = la.lu_solve(self.coarse, np.concatenate([self._Zt(u[:-1]), u[-1:]]),
                         trans=1 if transpose else 0, check_finite=False)
-        return np.concatenate([self.W @ y[:-1], y[-1:]])
+        return np.concatenate([self._Z(y[:-1]), y[-1:]])
 
     def _precondition(self, u: np.ndarray, transpose: bool):
         """q + [K_rr^-1 (u - A q); 0] with q the coarse solution of u (a generator: it yields

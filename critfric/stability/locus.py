@@ -149,6 +149,15 @@ class Block:
             if len(cols) < b.shape[0] // 4:
                 self.rows, self.cols, self.sub = rows, cols, b[rows][:, cols].tocsr()
 
+    def product(self, X: np.ndarray, out: np.ndarray, transpose: bool = False) -> None:
+        """b X (b^T X with ``transpose``) written into ``out``."""
+        if self.sub is None:
+            out[:] = (self.b.T if transpose else self.b) @ X
+            return
+        rows, cols = (self.cols, self.rows) if transpose else (self.rows, self.cols)
+        out[:] = 0.0
+        out[rows] = (self.sub.T if transpose else self.sub) @ X[cols]
+
     def form(self, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
         """X^T b Y."""
         if self.sub is None:
@@ -224,13 +233,25 @@ def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str) -> Reduced:
     corrected = min(k, modes + CORRECTED_EXTRA)
     if basis == "auto":
         basis = "contact" if 3 * p0 <= 4 * corrected else "modal"
+    blocks = blocks_of(pencil)
+    # column-major right-hand sides and basis, written in place: the solves read and write
+    # columns, and a row-major n x 60 array costs a transposed copy each way
     if basis == "contact":  # right null space at kappa = 0 (tangential loads), left (reactions)
-        loads = [pencil.G.toarray(), pencil.Knr.T.toarray(), pencil.Mnr.T.toarray()]
+        loads = np.empty((n, 3 * p0), order="F")
+        for j, b in enumerate((pencil.G, pencil.Knr.T, pencil.Mnr.T)):
+            b.toarray(out=loads[:, j * p0:(j + 1) * p0])
     else:  # how each mode's contact forces load the body, right and left: G C Phi, C^T G^T Phi
         low = vecs[:, :corrected]
-        loads = [pencil.GKnr @ low, pencil.GMnr @ low, pencil.GKnr.T @ low, pencil.GMnr.T @ low]
-    V = orthonormal(np.column_stack([vecs, factor.solve(np.column_stack(loads))]))
-    A0, A1, B0, B1 = (b.form(V, V) for b in blocks_of(pencil))
+        loads = np.empty((n, 4 * corrected), order="F")
+        for j, (b, transpose) in enumerate(((blocks[1], False), (blocks[3], False),
+                                            (blocks[1], True), (blocks[3], True))):
+            b.product(low, loads[:, j * corrected:(j + 1) * corrected], transpose)
+    W = np.empty((n, k + loads.shape[1]), order="F")
+    W[:, :k] = vecs
+    W[:, k:] = factor.solve(loads)
+    del loads
+    V = orthonormal(W, overwrite=True)
+    A0, A1, B0, B1 = (b.form(V, V) for b in blocks)
     return Reduced(V, A0, A1, B0, B1, w, vecs)
 
 

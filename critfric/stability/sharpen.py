@@ -50,7 +50,7 @@ class _Run:
 
     def __init__(self, red: Reduced, guess: Guess, yz: np.ndarray):
         self.mats = [red.A0, red.A1, red.B0, red.B1]
-        self.T = np.empty((len(red.V), WIDE * SHARPEN_ROUNDS))
+        self.T = np.empty((len(red.V), WIDE * SHARPEN_ROUNDS), order="F")  # written by columns
         self.t = 0
         self.f, self.kappa, self.branch = guess.friction, guess.kappa, guess.branch
         self.y, self.z = yz.T
@@ -75,13 +75,14 @@ class _Run:
                                               found.left)
         self.active = not ((rnd and still) or rnd == SHARPEN_ROUNDS)
 
-    def residuals(self, pencil: SlidingPencil, vw: np.ndarray) -> np.ndarray:
-        """L v, L^T w, B v, B^T w (v, w: the null vectors on the kept DOFs)."""
+    def residuals(self, pencil: SlidingPencil, vw: np.ndarray, out: np.ndarray) -> None:
+        """L v, L^T w, B v, B^T w (v, w: the null vectors on the kept DOFs) into the WIDE
+        columns ``out``."""
         v, w = vw.T
         f, kappa = self.f, self.kappa
-        Bv, BTw = pencil.apply_B(f, v), pencil.apply_B(f, w, transpose=True)
-        return np.column_stack([pencil.apply_A(f, v) - kappa * Bv,
-                                pencil.apply_A(f, w, transpose=True) - kappa * BTw, Bv, BTw])
+        out[:, 2], out[:, 3] = pencil.apply_B(f, v), pencil.apply_B(f, w, transpose=True)
+        out[:, 0] = pencil.apply_A(f, v) - kappa * out[:, 2]
+        out[:, 1] = pencil.apply_A(f, w, transpose=True) - kappa * out[:, 3]
 
     def extend(self, new: np.ndarray, edges: list[tuple]) -> None:
         """W' = [W, N] (W = [V, T]): W'^T b W' from W^T b W and the borders W^T b N,
@@ -109,8 +110,10 @@ def _sharpen(red: Reduced, pencil: SlidingPencil, factor, guesses: list[Guess]
         if not active:
             break
         vw = _lift(V, m, active)
-        X = factor.solve(np.column_stack([run.residuals(pencil, vw[:, 2 * i:2 * i + 2])
-                                          for i, run in enumerate(active)]))
+        R = np.empty((len(V), WIDE * len(active)), order="F")  # column-major, as solves read
+        for i, run in enumerate(active):
+            run.residuals(pencil, vw[:, 2 * i:2 * i + 2], R[:, WIDE * i:WIDE * (i + 1)])
+        X = factor.solve(R)
         news = _outside(V, [run.T[:, :run.t] for run in active], X)
         grown = [(run, new) for run, new in zip(active, news) if new.shape[1]]
         for run, new in zip(active, news):

@@ -156,3 +156,18 @@ def test_orthonormal_bases_of_nearly_dependent_columns():
     np.testing.assert_allclose(Q.T @ Q, np.eye(9), atol=1e-12)
     residual = W - Q @ (Q.T @ W)
     assert np.abs(residual).max() <= 1e-10 * np.abs(W).max()
+
+
+@pytest.mark.parametrize("order", ["C", "F"])
+def test_orthonormal_over_its_input_is_the_same_basis(order):
+    """``overwrite``: the basis written in W's memory (row-major, W's leading entries) is
+    the one a new array gets, with a column dropped too."""
+    rng = np.random.default_rng(8)
+    A = rng.standard_normal((3000, 5))
+    W = np.column_stack([A, A[:, :2] + 1e-6 * rng.standard_normal((3000, 2)), A[:, 0] - A[:, 4]])
+    expected = bordered.orthonormal(W)
+    mine = np.array(W, order=order)
+    Q = bordered.orthonormal(mine, overwrite=True)
+    assert Q.shape == expected.shape == (3000, 7)
+    assert np.shares_memory(Q, mine) and Q.flags.c_contiguous
+    np.testing.assert_array_equal(Q, expected)

@@ -329,3 +329,25 @@ def test_openblas_threads_follow_the_model_size_and_are_given_back():
     before = locus.openblas_threads()
     stability_case("four-triangles")
     assert locus.openblas_threads() == before
+
+
+@pytest.mark.parametrize("few", [True, False])
+@pytest.mark.parametrize("transpose", [False, True])
+def test_block_products_written_in_place(few, transpose):
+    """Block.product: b X (b^T X) into a column-major slice, through the few rows and columns
+    where b has them, over all rows where not; the same numbers as the sparse product."""
+    rng = np.random.default_rng(3)
+    n = 400
+    if few:  # nonzero rows and columns on a tenth of the DOFs (a friction block)
+        rows, cols = rng.choice(n, 30, replace=False), rng.choice(n, 30, replace=False)
+        b = sp.csr_matrix((rng.standard_normal(90), (rng.choice(rows, 90), rng.choice(cols, 90))),
+                          shape=(n, n))
+    else:
+        b = sp.random(n, n, density=0.05, random_state=4, format="csr")
+    block = locus.Block(b, symmetric=False)
+    assert (block.sub is not None) == few
+    X = rng.standard_normal((n, 3))
+    out = np.full((n, 7), np.nan, order="F")
+    block.product(X, out[:, 2:5], transpose)
+    np.testing.assert_array_equal(out[:, 2:5], (b.T if transpose else b) @ X)
+    assert np.isnan(out[:, [0, 1, 5, 6]]).all()
