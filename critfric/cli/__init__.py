@@ -26,9 +26,13 @@ def main() -> None:
     sys.unraisablehook = unraisable
     try:  # from the first import on (a Ctrl-C landed in ``import signal`` before the try)
         from .app import app
+        from .common import keep_freed_memory
 
         if swallowed:
             raise KeyboardInterrupt
+        # the command's own process (not a test's CliRunner): its malloc settings
+        if next((a for a in sys.argv[1:] if not a.startswith("-")), None) == "stability":
+            keep_freed_memory()
         app()
     except KeyboardInterrupt:  # outside a command (start-up, option parsing)
         _interrupted("critfric: interrupted")
