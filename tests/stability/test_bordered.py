@@ -3,6 +3,8 @@ GMRES against the LU of the bordered matrix, and the fall-back on that LU."""
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
@@ -128,6 +130,32 @@ def test_both_directions_in_lockstep_land_where_each_alone_does(sharpened, both_
         assert joint.kappa == pytest.approx(one.kappa, rel=1e-12)
     # each GMRES iteration's solves of both directions in one call
     assert 0 < joint_factor.calls < alone_factor.calls
+
+
+def test_runs_resumed_in_two_threads_give_the_same_numbers(sharpened, both_ways,
+                                                           monkeypatch):
+    """drive() resumes the lockstep's runs two at a time in two threads: bit for bit what
+    one thread gives, and no thread of it outlives the call."""
+    pencil, factor, red, _ = sharpened
+    threads = []
+    resume = bordered.resume
+
+    def seen(run, value=None):
+        threads.append(threading.current_thread().name)
+        return resume(run, value)
+
+    monkeypatch.setattr(bordered, "resume", seen)
+    monkeypatch.setattr(bordered, "usable_cpus", lambda: 2)
+    two = fold.find_folds(pencil, both_ways, solver=bordered.Deflated(factor, red.modes0))
+    assert any(name.startswith("critfric-drive") for name in threads)
+    threads.clear()
+    monkeypatch.setattr(bordered, "usable_cpus", lambda: 1)
+    one = fold.find_folds(pencil, both_ways, solver=bordered.Deflated(factor, red.modes0))
+    assert set(threads) == {threading.main_thread().name}
+    for a, b in zip(two, one):
+        assert (a.friction, a.kappa, a.steps) == (b.friction, b.kappa, b.steps)
+        np.testing.assert_array_equal(a.right, b.right)
+        assert a.solver.iterations == b.solver.iterations > 0
 
 
 def test_a_stall_in_lockstep_hands_over_to_one_after_the_other(sharpened, both_ways,
