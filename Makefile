@@ -5,9 +5,6 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
-# pip without byte-compiling every installed module (half the install time: 17 s against 35 s
-# for the SciPy-only set); Python compiles what it imports, once, on first use
-PIP    := -m pip install -q --disable-pip-version-check --no-compile
 DEMO   := demo
 
 .PHONY: all venv demo test test-nofast validate docs fuzz shell clean
@@ -22,7 +19,8 @@ $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV) 2>/dev/null || { rm -rf $(VENV); \
 	  echo "critfric set-up: '$(PYTHON) -m venv' does not work here; install the venv module" \
 	       "(Debian/Ubuntu: sudo apt-get install python3-venv) and run make again" >&2; exit 1; }
-	$(BIN)/python $(PIP) -e '.[test,fast]' || $(BIN)/python $(PIP) -e '.[test]'
+	$(BIN)/python -m pip install -q --disable-pip-version-check -e '.[test,fast]' \
+	  || $(BIN)/python -m pip install -q --disable-pip-version-check -e '.[test]'
 	@touch $(STAMP)
 
 venv: $(STAMP)
@@ -43,7 +41,7 @@ test: $(STAMP)
 NOFAST := .venv-nofast
 $(NOFAST)/.installed: pyproject.toml $(STAMP)
 	@test -x $(NOFAST)/bin/python || $(PYTHON) -m venv $(NOFAST)
-	$(NOFAST)/bin/python $(PIP) -e '.[test]'
+	$(NOFAST)/bin/python -m pip install -q --disable-pip-version-check -e '.[test]'
 	@touch $@
 
 # (run once, in `make test`: the README's commands, one long serial test; the manual's pages
@@ -70,7 +68,7 @@ validate: $(STAMP)
 # from the schema and the CLI) into docs/_build/html, offline; any warning fails the build
 DOCS_STAMP := $(VENV)/.docs-installed
 $(DOCS_STAMP): pyproject.toml $(STAMP)
-	$(BIN)/python $(PIP) -e '.[docs]'
+	$(BIN)/python -m pip install -q --disable-pip-version-check -e '.[docs]'
 	@touch $@
 
 docs: $(DOCS_STAMP)
