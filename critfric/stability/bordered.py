@@ -244,8 +244,8 @@ def drive(runs: list, answer) -> list:
     runs are resumed two at a time in two threads (where there are two CPUs), for the call
     only; ``answer`` is called in this thread. Between their requests the runs do sparse
     products with L and dense products over the modes, which release the GIL: the two
-    sliding directions' Newton step at 295 k DOFs took 1.43-1.50 s against 1.69-1.75 s one
-    run after the other. A run's numbers do not depend on it (one thread resumes it at a
+    sliding directions' Newton step at 295 k DOFs (PARDISO) took 1.49-1.57 s against
+    1.74-1.96 s one run after the other. A run's numbers do not depend on it (one thread resumes it at a
     time; BLAS on one thread in each)."""
     if len(runs) < 2 or usable_cpus() < 2:
         return _drive(runs, answer, lambda items: [resume(*item) for item in items])
