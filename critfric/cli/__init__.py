@@ -25,8 +25,8 @@ def main() -> None:
 
     sys.unraisablehook = unraisable
     try:  # from the first import on (a Ctrl-C landed in ``import signal`` before the try)
+        from ..guards import keep_freed_memory
         from .app import app
-        from .common import keep_freed_memory
 
         if swallowed:
             raise KeyboardInterrupt

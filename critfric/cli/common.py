@@ -3,10 +3,7 @@ formatting of short lists of values. The commands live in :mod:`.app` and :mod:`
 
 from __future__ import annotations
 
-import ctypes
 import inspect
-import os
-import platform
 import types
 import typing
 from pathlib import Path
@@ -142,32 +139,3 @@ def figures_and_notes(path: Path, result, *, plot: bool) -> None:
     for warning in getattr(result, "warnings", []):
         say(f"critfric: warning: {warning}")
 
-
-#: glibc's malloc settings for the stability command (mallopt's parameter numbers)
-M_TRIM_THRESHOLD, M_MMAP_MAX, M_ARENA_MAX = -1, -4, -8
-KEPT_FREE = 1 << 30  # free memory kept at the heap's top for reuse, at most
-
-
-def keep_freed_memory() -> bool:
-    """glibc's malloc keeps freed memory for the next arrays instead of giving it back to the
-    system (no mmap for large blocks, the heap's top trimmed above KEPT_FREE only, one arena
-    for every thread: each thread's own arena kept its freed memory too, 1.72-1.77 GB peak
-    at 295 k DOFs against 1.52-1.56 GB with one): what the
-    stability stages allocate and free again and again (n x 80 bases and their products,
-    sparse matrices of K_rr's size) is then not paid once more in page faults. Measured on
-    ``critfric stability`` (P1 unit square): at 295 k DOFs 10.9-11.1 s against 11.7-12.0 s
-    and the peak 3% higher, at 1.0 M DOFs 41.9 s against 49.9 s, peak 6% higher; `solve`
-    at 1.29 M DOFs was slower (11.6-11.9 s against 10.9-11.0 s) and its peak 30% higher
-    (memory freed below a live array is not reused for larger ones), so only this command
-    asks for it. Nothing is done off glibc or where the user set glibc's malloc (the
-    MALLOC_*_ variables or GLIBC_TUNABLES). True if set."""
-    if platform.libc_ver()[0] != "glibc" or "glibc.malloc" in os.environ.get(
-            "GLIBC_TUNABLES", "") or any(k.startswith("MALLOC_") for k in os.environ):
-        return False
-    try:
-        mallopt = ctypes.CDLL(None).mallopt
-    except (OSError, AttributeError):
-        return False
-    mallopt.argtypes, mallopt.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
-    return bool(mallopt(M_ARENA_MAX, 1) and mallopt(M_MMAP_MAX, 0)
-                and mallopt(M_TRIM_THRESHOLD, KEPT_FREE))

@@ -26,7 +26,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 from threadpoolctl import threadpool_limits
 
-from ..guards import usable_cpus
+from ..guards import freed_memory_kept, usable_cpus
 from ..solvers.backends import factorize
 
 REFINE_MAX = 12  # refinement steps on an older LU before a fresh one is taken
@@ -241,13 +241,16 @@ def drive(runs: list, answer) -> list:
     """Generator runs taken to their ends in lockstep, their return values in order: each
     round, ``answer`` takes the pending runs' requests (a list) and gives their replies (a
     list, in the same order), each sent to its run (an exception: thrown into it). Several
-    runs are resumed two at a time in two threads (where there are two CPUs), for the call
-    only; ``answer`` is called in this thread. Between their requests the runs do sparse
+    runs are resumed two at a time in two threads, for the call only, where there are two
+    CPUs and the process's malloc has one arena (:func:`critfric.guards.keep_freed_memory`,
+    which ``critfric stability`` asks for: with glibc's default arenas each thread's kept
+    what it freed, the peak at 295 k DOFs 1.68-1.71 GB against 1.43 GB one run after the
+    other); ``answer`` is called in this thread. Between their requests the runs do sparse
     products with L and dense products over the modes, which release the GIL: the two
     sliding directions' Newton step at 295 k DOFs (PARDISO) took 1.49-1.57 s against
     1.74-1.96 s one run after the other. A run's numbers do not depend on it (one thread resumes it at a
     time; BLAS on one thread in each)."""
-    if len(runs) < 2 or usable_cpus() < 2:
+    if len(runs) < 2 or usable_cpus() < 2 or not freed_memory_kept():
         return _drive(runs, answer, lambda items: [resume(*item) for item in items])
     with ThreadPoolExecutor(2, thread_name_prefix="critfric-drive") as pool:
         return _drive(runs, answer, lambda items: list(pool.map(lambda i: resume(*i), items)))

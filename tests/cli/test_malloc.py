@@ -1,5 +1,5 @@
-"""The stability command's malloc settings (:func:`critfric.cli.common.keep_freed_memory`):
-set by the command's own process only, on glibc, unless the user set glibc's malloc."""
+"""The stability command's malloc settings (:func:`critfric.guards.keep_freed_memory`): set
+by the command's own process only, on glibc, unless the user set glibc's malloc."""
 
 from __future__ import annotations
 
@@ -11,11 +11,11 @@ import sys
 
 import pytest
 
-from critfric import cli
-from critfric.cli import common
+from critfric import cli, guards
 
 GLIBC = platform.libc_ver()[0] == "glibc"
-PROBE = "from critfric.cli.common import keep_freed_memory as k; print(k())"
+PROBE = ("from critfric.guards import keep_freed_memory as k, freed_memory_kept as f; "
+         "before = f(); print(k(), before, f())")
 
 
 def _probe(**env) -> str:
@@ -28,10 +28,10 @@ def _probe(**env) -> str:
 
 @pytest.mark.skipif(not GLIBC, reason="glibc's mallopt")
 def test_set_on_glibc_unless_the_user_set_malloc():
-    assert _probe() == "True"
-    assert _probe(MALLOC_ARENA_MAX="2") == "False"
-    assert _probe(GLIBC_TUNABLES="glibc.malloc.mmap_max=0") == "False"
-    assert _probe(GLIBC_TUNABLES="glibc.rtld.optional_static_tls=2048") == "True"
+    assert _probe() == "True False True"
+    assert _probe(MALLOC_ARENA_MAX="2") == "False False False"
+    assert _probe(GLIBC_TUNABLES="glibc.malloc.mmap_max=0") == "False False False"
+    assert _probe(GLIBC_TUNABLES="glibc.rtld.optional_static_tls=2048") == "True False True"
 
 
 @pytest.fixture
@@ -48,7 +48,7 @@ def signals():
                                          (["solve", "--help"], False), (["--help"], False)])
 def test_only_the_stability_command_asks(monkeypatch, signals, argv, asked):
     calls = []
-    monkeypatch.setattr(common, "keep_freed_memory", lambda: calls.append(1))
+    monkeypatch.setattr(guards, "keep_freed_memory", lambda: calls.append(1))
     monkeypatch.setattr(sys, "argv", ["critfric", *argv])
     with pytest.raises(SystemExit) as ended:
         cli.main()

@@ -134,8 +134,9 @@ def test_both_directions_in_lockstep_land_where_each_alone_does(sharpened, both_
 
 def test_runs_resumed_in_two_threads_give_the_same_numbers(sharpened, both_ways,
                                                            monkeypatch):
-    """drive() resumes the lockstep's runs two at a time in two threads: bit for bit what
-    one thread gives, and no thread of it outlives the call."""
+    """drive() resumes the lockstep's runs two at a time in two threads (two CPUs, malloc
+    with one arena): bit for bit what one thread gives, and no thread of it outlives the
+    call; without the malloc settings, one thread."""
     pencil, factor, red, _ = sharpened
     threads = []
     resume = bordered.resume
@@ -146,12 +147,15 @@ def test_runs_resumed_in_two_threads_give_the_same_numbers(sharpened, both_ways,
 
     monkeypatch.setattr(bordered, "resume", seen)
     monkeypatch.setattr(bordered, "usable_cpus", lambda: 2)
+    monkeypatch.setattr(bordered, "freed_memory_kept", lambda: True)
     two = fold.find_folds(pencil, both_ways, solver=bordered.Deflated(factor, red.modes0))
     assert any(name.startswith("critfric-drive") for name in threads)
-    threads.clear()
-    monkeypatch.setattr(bordered, "usable_cpus", lambda: 1)
-    one = fold.find_folds(pencil, both_ways, solver=bordered.Deflated(factor, red.modes0))
-    assert set(threads) == {threading.main_thread().name}
+    for cpus, kept in ((1, True), (2, False)):
+        threads.clear()
+        monkeypatch.setattr(bordered, "usable_cpus", lambda cpus=cpus: cpus)
+        monkeypatch.setattr(bordered, "freed_memory_kept", lambda kept=kept: kept)
+        one = fold.find_folds(pencil, both_ways, solver=bordered.Deflated(factor, red.modes0))
+        assert set(threads) == {threading.main_thread().name}
     for a, b in zip(two, one):
         assert (a.friction, a.kappa, a.steps) == (b.friction, b.kappa, b.steps)
         np.testing.assert_array_equal(a.right, b.right)
