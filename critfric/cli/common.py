@@ -138,4 +138,3 @@ def figures_and_notes(path: Path, result, *, plot: bool) -> None:
         say(f"critfric: note: {note}")
     for warning in getattr(result, "warnings", []):
         say(f"critfric: warning: {warning}")
-

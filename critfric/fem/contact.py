@@ -246,11 +246,7 @@ def rotated_free(mats: list, layout: Layout) -> list:
     the same two-term sums as the sparse products (the same numbers; exact zeros stay
     stored). The matrices must hold full 2 x 2 node blocks, as an assembled stiffness does;
     they are left as they are."""
-    mats = [_summed(A) for A in mats]  # sorted: the columns 2j and 2j + 1 of a block adjacent
-    ip, col = mats[0].indptr, mats[0].indices
-    if any(not (np.array_equal(A.indptr, ip) and np.array_equal(A.indices, col))
-           for A in mats[1:]):
-        raise ValueError("rotated_free: the matrices must have the same sparsity")
+    mats = summed_alike(mats, "rotated_free")  # sorted: columns 2j, 2j + 1 of a block adjacent
     nodes, position = layout.nodes, layout.position
     r = position[2 * nodes]  # the rows 2i (and 2i + 1 = r + 1) of the free DOFs
     if np.any(r < 0) or np.any(position[2 * nodes + 1] != r + 1):
@@ -278,13 +274,21 @@ def rotated_free(mats: list, layout: Layout) -> list:
     return split
 
 
-def _summed(A: sp.spmatrix) -> sp.csr_matrix:
-    """A as CSR with sorted, summed entries (a copy only where A is not so already)."""
-    A = sp.csr_matrix(A)
-    if not A.has_canonical_format:
-        A = A.copy()
-        A.sum_duplicates()
-    return A
+def summed_alike(mats: list, what: str, *, copy: bool = False) -> list:
+    """The matrices as CSR with sorted, summed entries (copies with ``copy``, else only where
+    one is not so already); ValueError naming ``what`` unless they share one sparsity."""
+    out = []
+    for A in mats:
+        A = sp.csr_matrix(A, copy=copy)
+        if not A.has_canonical_format:
+            A = A if copy else A.copy()
+            A.sum_duplicates()
+        out.append(A)
+    ip, col = out[0].indptr, out[0].indices
+    if any(not (np.array_equal(A.indptr, ip) and np.array_equal(A.indices, col))
+           for A in out[1:]):
+        raise ValueError(f"{what}: the matrices must have the same sparsity")
+    return out
 
 
 def _combine(data: np.ndarray, e0: np.ndarray, e1: np.ndarray, R: np.ndarray) -> None:
@@ -389,12 +393,11 @@ def contact_system(mesh: Mesh, K_lam: sp.spmatrix, K_G: sp.spmatrix | None, *,
         split = rotated_free(mats, layout)
     except ValueError:
         split = [ff_fd for A in mats for ff_fd in rotated_free([A], layout)]
-    parts, coupling = zip(*split)
-    parts, coupling = parts + (None,), coupling + (None,)  # K_G None: nothing second
+    (ff_lam, fd_lam), (ff_G, fd_G) = split[0], (split[1] if len(split) > 1 else (None, None))
     return ContactSystem(mesh=mesh, free=layout.free, nodes=nodes, normal=normal,
                          tangent=tangent, cn=position[2 * nodes], ct=position[2 * nodes + 1],
-                         K_lam=parts[0], K_G=parts[1], fixed=np.flatnonzero(fixed),
-                         D_lam=coupling[0], D_G=coupling[1], lame=lame)
+                         K_lam=ff_lam, K_G=ff_G, fixed=np.flatnonzero(fixed), D_lam=fd_lam,
+                         D_G=fd_G, lame=lame)
 
 
 def check_held(mesh, dirichlet_nodes: np.ndarray, *, source: str | None = None) -> None:

@@ -31,6 +31,7 @@ from .contact import (
     _split_free,
     contact_frames,
     frame_rotation,
+    summed_alike,
 )
 from .mesh import Mesh
 
@@ -190,13 +191,8 @@ def rotated_frames(K: sp.spmatrix, nodes: np.ndarray, frames: np.ndarray, *other
     the matrices keep K's sparsity (ValueError if ``others`` have another); otherwise K alone
     is rotated by sparse products (``others`` must be empty)."""
     d = frames.shape[1]
-    mats = [sp.csr_matrix(A, copy=True) for A in (K, *others)]
-    for A in mats:
-        A.sum_duplicates()
+    mats = summed_alike([K, *others], "rotated_frames", copy=True)  # combined in place below
     ip, col = mats[0].indptr, mats[0].indices
-    if any(not (np.array_equal(A.indptr, ip) and np.array_equal(A.indices, col))
-           for A in mats[1:]):
-        raise ValueError("rotated_frames: the matrices must have the same sparsity")
     entries = _block_entries(ip, col, np.asarray(nodes), d, K.shape[1])
     if entries is None:
         if others:
