@@ -44,19 +44,12 @@ $(NOFAST)/.installed: pyproject.toml $(STAMP)
 	$(NOFAST)/bin/python -m pip install -q --disable-pip-version-check -e '.[test]'
 	@touch $@
 
-# (run once, in `make test`: the README's commands, one long serial test; the manual's pages
-# and gallery; what the sparse solver does not decide: case files, meshing, bad and hostile
-# inputs and outputs, signals, the fuzzing of the CLI, the architecture)
-ONCE := --deselect tests/test_readme.py::test_every_readme_command_runs_in_order \
-	--ignore=tests/test_gallery.py --ignore=tests/test_docs.py \
-	--ignore=tests/case --ignore=tests/meshing --ignore=tests/test_architecture.py \
-	--ignore=tests/test_exponents.py \
-	--ignore=tests/cli/test_badinput.py --ignore=tests/cli/test_fuzz.py \
-	--ignore=tests/cli/test_hostile.py --ignore=tests/cli/test_hostile_gmsh.py \
-	--ignore=tests/cli/test_hostile_outputs.py --ignore=tests/cli/test_hostile_sweep.py
+# (the tests marked `once` run in `make test` only: what the sparse solver does not decide, such as
+# case files, meshing, bad and hostile inputs and outputs, figures, worker processes and signals,
+# the README's commands, the manual and the architecture)
 test-nofast: $(NOFAST)/.installed
 	$(NOFAST)/bin/python -c 'import importlib.util as u; assert u.find_spec("pypardiso") is None'
-	$(NOFAST)/bin/python -m pytest -q -n auto $(ONCE)
+	$(NOFAST)/bin/python -m pytest -q -n auto -m "not once"
 
 # the long validation study (minutes; not part of `make test`): h -> 0 limits of graded sweeps
 # (unit square, inclined body, mixed contact states; P1, P2, Q1, Q2; five sizes) against

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 PACKAGE = Path(__file__).resolve().parents[1] / "critfric"
 # lowest first: a module may import only from its own layer or a lower one
 LAYERS = ["_version", "errors", "fem", "guards", "case", "meshing", "solvers", "solve",

@@ -16,6 +16,8 @@ from pathlib import Path
 import pytest
 from helpers import REPO
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 sys.path.insert(0, str(REPO / "docs" / "_ext"))
 import critfric_refs as refs
 

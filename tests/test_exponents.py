@@ -6,6 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 _spec = importlib.util.spec_from_file_location(
     "exponents", Path(__file__).resolve().parents[1] / "scripts" / "exponents.py")
 exponents = importlib.util.module_from_spec(_spec)

@@ -23,6 +23,8 @@ from pathlib import Path
 import pytest
 from helpers import REPO
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 DOCS = REPO / "docs"
 PAGES = [DOCS / "getting-started.md", *sorted((DOCS / "guide").glob("*.md"))]
 SCRIPTS = sorted((DOCS / "gallery").glob("plot_*.py"))

@@ -61,6 +61,7 @@ def test_the_readme_is_short_and_says_where_the_rest_is():
         assert needed in README, needed
 
 
+@pytest.mark.once
 @pytest.mark.slow
 def test_every_readme_command_runs_in_order(workdir):
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}"

@@ -9,6 +9,8 @@ import critfric
 from critfric.case.schema import load_case, loads_case, shipped_cases
 from critfric.errors import CaseError
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 GOOD = square_case(size=0.2)
 
 

@@ -16,6 +16,8 @@ from typer.testing import CliRunner
 from critfric.cli.app import app
 from critfric.cli.common import number_options
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 runner = CliRunner()
 
 SQUARE = """\

@@ -125,6 +125,7 @@ def test_quiet_and_verbose(tmp_path):
     assert "wrote" in normal.stderr and "stages" not in normal.stderr
 
 
+@pytest.mark.once
 def test_plots_in_every_format_and_exports_with_tags_and_coefficients(tmp_path):
     import meshio
 

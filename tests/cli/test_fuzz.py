@@ -21,6 +21,8 @@ from critfric.case.schema import SCHEMA, from_dict, loads_case
 from critfric.cli.app import app
 from critfric.errors import CritfricError
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 SCALE = float(os.environ.get("CRITFRIC_FUZZ_SCALE", "1"))
 FULL = SCALE > 1  # make fuzz: random examples, no derandomization
 

@@ -13,6 +13,8 @@ from helpers import FILE_CASE, SQUARE_GEO, assert_refused, folder_files, run_cli
 
 from critfric.meshing import geoscript, sandbox
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 
 def _run_file(tmp_path, name: str, content: str | bytes, *more):
     return run_file_case(tmp_path, name, content, *more)[:2]

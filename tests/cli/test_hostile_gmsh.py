@@ -19,6 +19,8 @@ from critfric.errors import CaseError
 from critfric.fem.mesh import orient
 from critfric.meshing import overlap, sandbox, solid
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 BOUND = 10.0  # seconds of wall time, start-up included, on a loaded 2-core machine
 
 

@@ -20,6 +20,8 @@ from critfric.sweep.extrapolate import limits_of
 from critfric.sweep.grid import empty_row
 from critfric.sweep.runner import make_grid
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 
 def _refused(res, *words, code=2):
     out = res.output

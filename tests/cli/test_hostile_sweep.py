@@ -23,7 +23,8 @@ from critfric.files import sweepfile
 from critfric.files.safety import Terminated, interrupt_guard
 from critfric.files.sweepfile import read_sweep
 
-pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals and /proc")
+pytestmark = [pytest.mark.once,
+              pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals and /proc")]
 
 REAL_FSYNC = os.fsync
 STOP_BOUND = 5.0  # seconds from the signal to the exit, on a loaded 2-core machine

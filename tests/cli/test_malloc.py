@@ -13,6 +13,8 @@ import pytest
 
 from critfric import cli, guards
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 GLIBC = platform.libc_ver()[0] == "glibc"
 PROBE = ("from critfric.guards import keep_freed_memory as k, freed_memory_kept as f; "
          "before = f(); print(k(), before, f())")

@@ -77,6 +77,7 @@ def test_angle_sweep_json_file_identity_and_polar_figure(tmp_path, monkeypatch, 
     assert clash.exit_code == 2 and "--force" in clash.stderr
 
 
+@pytest.mark.once
 def test_an_angle_sweep_opens_in_xarray_with_a_slip_angle_dimension(tmp_path, box):
     xr = pytest.importorskip("xarray")
     pytest.importorskip("h5netcdf")

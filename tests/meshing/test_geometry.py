@@ -14,6 +14,8 @@ from critfric.meshing.geometry import (
     validate,
 )
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 # a pentagon-like hexagon whose bottom side is split into three named parts
 SPLIT = [(0, 0), (0.3, 0), (0.7, 0), (1, 0), (1.2, 0.8), (0.1, 1)]
 SPLIT_NAMES = ["b", "c", "b", "r", "t", "l"]

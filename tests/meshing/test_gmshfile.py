@@ -15,6 +15,8 @@ from critfric.meshing.geometry import rectangle
 from critfric.meshing.geoscript import refusals
 from critfric.meshing.mesh import build_mesh
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 
 def file_case(path, *, element="P1", extra="", contact="bottom", dirichlet="top"):
     return loads_case(f"""

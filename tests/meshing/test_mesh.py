@@ -12,6 +12,8 @@ from critfric.fem.mesh import Mesh, orient, signed_areas
 from critfric.meshing.geometry import parallelogram, polygon, rectangle
 from critfric.meshing.mesh import build_mesh, inline_mesh
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 ELEMENTS = ["P1", "P2", "Q1", "Q2"]
 NV = {"P1": 3, "P2": 3, "Q1": 4, "Q2": 4}
 # bottom side split into named parts b | c | b (collinear vertices), contact "c" in the middle

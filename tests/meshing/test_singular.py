@@ -13,6 +13,8 @@ from critfric.meshing.geometry import polygon, rectangle
 from critfric.meshing.mesh import build_mesh
 from critfric.meshing.singular import singular_points, state_junctions
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 #: a 2 x 1 block: stuck on [0, 0.5], slip + on [0.5, 1.3], slip - on [1.3, 2] of its base
 MIXED = {"geometry": {"shape": "rectangle", "width": 2.0, "height": 1.0},
          "mesh": {"size": 0.2, "element": "P1"},

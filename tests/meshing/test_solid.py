@@ -25,6 +25,8 @@ from critfric.meshing.solid import (
     solid_mesh,
 )
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 ELEMENTS = ["P1", "P2", "Q1", "Q2"]
 NV = {"P1": 4, "P2": 4, "Q1": 8, "Q2": 8}
 # the 6 tetrahedra around the diagonal 0-6 of a hexahedron (gmsh vertex order)

@@ -15,6 +15,8 @@ from critfric.case.schema import loads_case
 from critfric.files.results import write_result
 from critfric.plots.figures import figures, plot_file
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 
 def assert_png(path):
     assert path.exists() and path.stat().st_size > 1000

@@ -142,6 +142,7 @@ def test_brent_on_a_known_curve_with_a_gap_of_infinite_values():
 
 
 # ------------------------------------------------------------------------------ resuming
+@pytest.mark.once
 def test_an_interrupted_angle_sweep_resumes_with_only_what_is_missing(box, tmp_path):
     """Interrupted after three points (on two workers), then at the first minimum: each
     re-run computes only the missing points and minima, and the file ends as a fresh one."""

@@ -87,6 +87,7 @@ def _interrupt_after(n):
     return on_point
 
 
+@pytest.mark.once
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_ctrl_c_keeps_every_finished_point_and_a_rerun_computes_only_the_rest(tmp_path, jobs):
     case = critfric.load_case(CASES / "four_triangles.toml")
@@ -133,6 +134,7 @@ def _rows_or_none(path):
         return None
 
 
+@pytest.mark.once
 def test_sigkill_half_way_then_rerun_gives_every_point_once(tmp_path):
     out = tmp_path / "killed.h5"
     env = dict(os.environ, PYTHONPATH=str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", ""))
@@ -183,6 +185,7 @@ def _probe(spec, point):
             "pid": os.getpid()}
 
 
+@pytest.mark.once
 def test_workers_pin_threads_and_survive_a_crashed_worker():
     before = {k: os.environ.get(k) for k in THREAD_VARS}
     points = [Point(nu, 0.1, "P1") for nu in (0.1, 0.2, 0.3, 0.4)]

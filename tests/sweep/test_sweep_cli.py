@@ -15,6 +15,8 @@ import critfric
 from critfric.fem.assembly import cell_stress, lame, von_mises
 from critfric.files.export import read_solve
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 
 def assert_png(path):
     assert path.exists() and path.stat().st_size > 1000

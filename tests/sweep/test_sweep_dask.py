@@ -12,6 +12,8 @@ from critfric.files.sweepfile import read_sweep
 from critfric.sweep import workers
 from critfric.sweep.runner import make_grid, run_sweep
 
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
+
 distributed = pytest.importorskip("distributed")
 
 

@@ -10,6 +10,7 @@ import subprocess
 import time
 
 import numpy as np
+import pytest
 from helpers import CASES, cli_process, resume_exactly_once, square_case
 from typer.testing import CliRunner
 
@@ -20,6 +21,8 @@ from critfric.files.safety import output_lock
 from critfric.files.sweepfile import append_point, open_sweep, read_sweep
 from critfric.sweep.grid import Point, empty_row
 from critfric.sweep.runner import make_grid, run_sweep
+
+pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
 
 
 def _row(i: int) -> dict:
