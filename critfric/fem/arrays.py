@@ -33,8 +33,10 @@ def stable_argsort(keys: np.ndarray) -> np.ndarray:
 def distinct(values: np.ndarray) -> np.ndarray:
     """``np.unique(values)`` (the sorted distinct values, flattened) by one sort: numpy 2.3+
     takes a hash table for integers without ``return_*``, 40-100x slower here (3.9 M
-    indices: 1.1 s against 0.025 s)."""
-    x = np.sort(np.asarray(values).ravel())
+    indices: 1.1 s against 0.025 s). The stable sort (timsort) takes the runs that a mesh's
+    numbering leaves: the 3.9 M node pairs of a 1.29 M-cell mesh in 0.07 s against 0.23 s
+    for the default sort, in random order 0.27 s against 0.24 s (numpy 2.4)."""
+    x = np.sort(np.asarray(values).ravel(), kind="stable")
     keep = np.empty(len(x), dtype=bool)
     keep[:1] = True
     np.not_equal(x[1:], x[:-1], out=keep[1:])

@@ -351,6 +351,27 @@ def test_upper_pattern_from_the_node_pattern(name, dim):
         assert len(ptr) == np.count_nonzero(~drop) + 1 and len(col) > 0
 
 
+@pytest.mark.parametrize("name", NAMES)
+def test_block_sums_equal_a_coo_sum_for_cells_in_any_order(name):
+    """Each cell's node pairs are located among the distinct pairs by a search: the block
+    sums equal scipy's COO sum of duplicates for the cells shuffled and each cell's nodes
+    rolled (the pairs then come as (hi, lo) as well as (lo, hi))."""
+    from critfric.fem.pattern import BlockPattern
+
+    mesh = MESHES[name]
+    rng = np.random.default_rng(7)
+    cells = np.roll(mesh.cells[rng.permutation(len(mesh.cells))], 1, axis=1)
+    pattern = BlockPattern(cells, mesh.n_nodes)
+    values = rng.standard_normal(cells.shape + cells.shape[1:])
+    got = sp.csr_matrix((pattern.block_sums(values), pattern._col, pattern._ptr),
+                        shape=(mesh.n_nodes, mesh.n_nodes))
+    rows = np.broadcast_to(cells[:, :, None], values.shape).ravel()
+    cols = np.broadcast_to(cells[:, None, :], values.shape).ravel()
+    want = sp.coo_matrix((values.ravel(), (rows, cols)), shape=got.shape).tocsr()
+    assert abs(got - want).max() < 1e-12 * abs(want).max()
+    assert got.nnz == want.nnz
+
+
 def test_pattern_handed_over_before_the_geometry():
     """on_pattern gets the pattern from the cells alone (a solve starts its factorization's
     analysis there), before the geometry checks the cells: a mesh refused for a clockwise
