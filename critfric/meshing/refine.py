@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..fem.arrays import distinct, stable_argsort
+from ..fem.arrays import distinct
 from ..fem.elements import get_element
 from ..fem.mesh import Mesh
 
@@ -107,10 +107,10 @@ def renumber(mesh: Mesh) -> Mesh:
     p = mesh.points
     low, extent = p.min(axis=0), float(np.ptp(p, axis=0).max()) or 1.0
     q = np.minimum((p - low) / extent * 2.0**31, 2.0**31 - 1).astype(np.uint64)
-    order = stable_argsort(_spread(q[:, 0]) | (_spread(q[:, 1]) << np.uint64(1)))
+    order = np.argsort(_spread(q[:, 0]) | (_spread(q[:, 1]) << np.uint64(1)), kind="stable")
     rank = np.empty(len(order), dtype=np.int64)
     rank[order] = np.arange(len(order))
     cells = rank[mesh.cells]
-    cells = cells[stable_argsort(cells.min(axis=1))]
+    cells = cells[np.argsort(cells.min(axis=1), kind="stable")]
     return Mesh(p[order], cells, mesh.element,
                 {name: rank[f] for name, f in mesh.edges.items()})
