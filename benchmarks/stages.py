@@ -3,6 +3,7 @@
     python benchmarks/stages.py                        # ~0.3 M and ~1.2 M DOFs, every backend
     python benchmarks/stages.py --sizes 0.3M --backends scipy
     python benchmarks/stages.py --root ../other-tree   # the same table for another checkout
+    python benchmarks/stages.py --sizes 1.2M --backends pardiso --rounds 5   # and the median
 
 For each size and backend, side by side in one run (a shared machine's load varies, so read
 the ratios): ``critfric solve unit-square --size S --json --backend B`` in a fresh process,
@@ -11,6 +12,8 @@ in its result file (mesh, assembly, contact, eigen; rest = start-up, mesh diamet
 the HDF5 write, exit), and, in another fresh process, one factorization of the same K with
 the same backend and ordering (``benchmarks/scale.py --child factor``: PARDISO with METIS,
 or SuperLU with critfric's nested-dissection order). ratio = solve wall / factorization.
+With ``--rounds N`` each row is measured N times (the factorization first in even rounds) and
+the median ratio follows: a shared machine's load moves a single ratio by 5-10 %.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -75,6 +79,8 @@ def main() -> None:
     ap.add_argument("--sizes", default="0.3M,1.2M", help=f"of {', '.join(SIZES)}")
     ap.add_argument("--backends", default="pardiso,scipy")
     ap.add_argument("--root", default=str(HERE.parent), help="critfric checkout to measure")
+    ap.add_argument("--rounds", type=int, default=1,
+                    help="pairs of runs per row (the order alternated), then their median ratio")
     a = ap.parse_args()
     root = Path(a.root).resolve()
     print(f"critfric from {root}; seconds (share of the wall time), peak RSS in MB\n")
@@ -83,18 +89,26 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name in filter(None, a.sizes.split(",")):
         for b in filter(None, a.backends.split(",")):
-            try:
-                r = solve(root, SIZES[name], b)
-                f = factor(root, SIZES[name], b)
-            except RuntimeError as exc:
-                print(f"| ~{name} | {b} | {exc} |" + " |" * 9, flush=True)
-                continue
-            rest = r["wall"] - sum(r[s] for s in STAGES)
-            cells = [f"{r[s]:.2f} ({100 * r[s] / r['wall']:.0f}%)" for s in STAGES]
-            cells.append(f"{rest:.2f} ({100 * rest / r['wall']:.0f}%)")
-            print(f"| {r['n_dofs']} | {b} | " + " | ".join(cells)
-                  + f" | {r['wall']:.2f} | {r['peak']:.0f} | {f['factor']:.2f} ({f['peak']:.0f}) "
-                  f"| {r['wall'] / f['factor']:.2f} |", flush=True)
+            ratios = []
+            for rnd in range(a.rounds):
+                try:
+                    if rnd % 2 == 0:
+                        r, f = solve(root, SIZES[name], b), factor(root, SIZES[name], b)
+                    else:
+                        f, r = factor(root, SIZES[name], b), solve(root, SIZES[name], b)
+                except RuntimeError as exc:
+                    print(f"| ~{name} | {b} | {exc} |" + " |" * 9, flush=True)
+                    break
+                rest = r["wall"] - sum(r[s] for s in STAGES)
+                cells = [f"{r[s]:.2f} ({100 * r[s] / r['wall']:.0f}%)" for s in STAGES]
+                cells.append(f"{rest:.2f} ({100 * rest / r['wall']:.0f}%)")
+                print(f"| {r['n_dofs']} | {b} | " + " | ".join(cells)
+                      + f" | {r['wall']:.2f} | {r['peak']:.0f} | {f['factor']:.2f} "
+                      f"({f['peak']:.0f}) | {r['wall'] / f['factor']:.2f} |", flush=True)
+                ratios.append(r["wall"] / f["factor"])
+            if len(ratios) > 1:
+                print(f"| | {b} | median ratio of {len(ratios)} rounds: "
+                      f"{statistics.median(ratios):.2f} |" + " |" * 8, flush=True)
 
 
 if __name__ == "__main__":
