@@ -27,6 +27,7 @@ import numpy as np
 
 from ..fem.arrays import distinct
 from ..fem.elements import get_element
+from ..fem.pattern import distinct_pairs
 
 LEAF = 16  # parts of at most this many nodes are not split further (64: 9% more fill)
 MAX_LEVELS = 50  # keeps the integer keys of the dissection tree exact
@@ -35,11 +36,7 @@ PIECE_LEVELS = 3  # pieces() of substructuring: the parts after this many splits
 
 def node_edges(cells: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Directed pairs (u, v) of distinct nodes sharing a cell, each pair once per direction."""
-    cells = np.asarray(cells, dtype=np.int64)
-    a, b = np.triu_indices(cells.shape[1], k=1)
-    u, v = cells[:, a].ravel(), cells[:, b].ravel()
-    key = np.sort(np.minimum(u, v) * n + np.maximum(u, v))
-    key = key[np.r_[True, key[1:] != key[:-1]]]
+    key = distinct_pairs(cells, n)
     itype = np.int32 if n < 2**31 else np.int64
     u, v = (key // n).astype(itype), (key % n).astype(itype)
     return np.concatenate([u, v]), np.concatenate([v, u])
