@@ -13,7 +13,7 @@ import scipy.sparse as sp
 
 from ..errors import CaseError
 from .mesh import Mesh
-from .pattern import BlockPattern
+from .pattern import BlockPattern, local_pairs
 
 
 def lame(E: float, nu: float) -> tuple[float, float]:
@@ -127,9 +127,12 @@ def _stiffness_blocks(mesh: Mesh, on_pattern) -> tuple[BlockPattern, list, list]
     xi, w = element.quadrature()
     _, det, grads = cell_geometry(mesh, xi)
     wdet = det * w  # (n_cells, n_qp)
-    # node block (a, b) of K_lam: B_km = int d_k N_a d_m N_b, summed over the cells
-    B = [[pattern.block_sums(_gradient_products(grads, wdet, k, m)) for m in range(d)]
-         for k in range(d)]
+    # node block (a, b) of K_lam: B_km = int d_k N_a d_m N_b, summed over the cells; B_mk is
+    # the transpose of B_km, and B_kk symmetric (summed from the local pairs a <= b alone)
+    B = [[None] * d for _ in range(d)]
+    for k in range(d):
+        for m in range(k, d):
+            B[k][m], B[m][k] = pattern.sums(*_gradient_products(grads, wdet, k, m))
     del grads
     # K_G[(a,k),(b,m)] = int (delta_km grad N_a . grad N_b + d_m N_a d_k N_b): node block by
     # node block, K_G = B^T + tr(B) I for the dim x dim block B of K_lam (same sparsity)
@@ -138,12 +141,21 @@ def _stiffness_blocks(mesh: Mesh, on_pattern) -> tuple[BlockPattern, list, list]
     return pattern, B, K_G
 
 
-def _gradient_products(grads: np.ndarray, wdet: np.ndarray, k: int, m: int) -> np.ndarray:
-    """(n_cells, n_local, n_local): sum over quadrature points of w det d_k N_a d_m N_b."""
-    out = 0.0
-    for q in range(wdet.shape[1]):
-        out = out + (grads[:, q, :, k] * wdet[:, q, None])[:, :, None] * grads[:, q, None, :, m]
-    return out
+def _gradient_products(grads: np.ndarray, wdet: np.ndarray, k: int, m: int) -> list:
+    """Sum over quadrature points of w det d_k N_a d_m N_b, (n_cells, ...) arrays for the
+    local blocks (a, a), then (a, b) of the local pairs a < b, then (b, a) (k != m only) of
+    :meth:`.pattern.BlockPattern.sums`. Several points: one batch of n_local x n_qp by n_qp x
+    n_local products (P2, 6 points, 4x faster than a sum of outer products over the points);
+    one point: each product alone."""
+    n_cells, n_qp, nl, _ = grads.shape
+    nodes, (a, b) = np.arange(nl), local_pairs(nl)
+    blocks = [(nodes, nodes), (a, b)] + ([(b, a)] if m != k else [])
+    if n_qp == 1:
+        weighted = grads[:, 0, :, k] * wdet
+        return [weighted[:, i] * grads[:, 0, j, m] for i, j in blocks]
+    weighted = grads[..., k] * wdet[..., None]  # (n_cells, n_qp, n_local)
+    full = np.matmul(weighted.transpose(0, 2, 1), grads[..., m]).reshape(n_cells, nl * nl)
+    return [full[:, i * nl + j] for i, j in blocks]
 
 
 def assemble_mass(mesh: Mesh, density: float = 1.0) -> sp.csr_matrix:

@@ -6,8 +6,11 @@ Node level first: row i of the node pattern holds every node sharing a cell with
 sorted (the lower neighbours, i itself, the upper ones). Each entry (i, j) is a dim x dim
 block of the DOF matrix (interleaved DOFs dim i + k, k < dim): each DOF row dim i + k holds
 the dim columns dim j + m of every neighbour j, in the node order. One sort gives the distinct
-node pairs of the cells (a < b), and a search in them locates every cell's node pair in that
-pattern; assembling is then one ``bincount`` per block component, in cell order.
+node pairs of the cells (a < b), and a search in them locates every cell's node pairs in that
+pattern; assembling a block component is then a ``bincount`` over the cells' diagonal blocks
+and one or two over their node pairs, in cell order: a symmetric component is summed from the
+cells' local pairs a < b alone and is exactly symmetric, and a component (k, m) gives its
+transpose (m, k) with it.
 """
 
 from __future__ import annotations
@@ -25,16 +28,14 @@ class BlockPattern:
     ``dim`` x ``dim`` blocks (node i has DOFs dim i + k).
 
     The distinct node pairs of the cells are found first; :meth:`upper` needs nothing more.
-    The node pattern (rows of every neighbour) follows on first use, then ``where``:
-
-    where : (n_cells, n_local, n_local) position, in the node pattern, of the block of
-            cell c's local node pair (a, b).
+    The node pattern (rows of every neighbour) and each cell's pairs among the distinct ones
+    follow on first use (:meth:`sums`, :meth:`csr`).
     """
 
     def __init__(self, cells: np.ndarray, n_nodes: int, dim: int = 2):
         cells = np.asarray(cells, dtype=np.int64)
         n = int(n_nodes)
-        keys = distinct_pairs(cells, n)  # each cell's pairs found in them by ``where``
+        keys = distinct_pairs(cells, n)  # each cell's pairs found in them by ``_local``
         self.n_nodes, self.dim = n, int(dim)
         self.nnz = n + 2 * len(keys)  # node blocks: the diagonal and each pair both ways
         self._itype = np.int32 if dim * dim * self.nnz < np.iinfo(np.int32).max else np.int64
@@ -69,23 +70,22 @@ class BlockPattern:
         return self._node[1]
 
     @cached_property
-    def where(self) -> np.ndarray:
-        _, _, diag, upper, lower = self._node
+    def _local(self) -> tuple:
+        """Each cell's node pairs among the distinct ones, (n_cells, n_pairs) for the local
+        pairs a < b in ``np.triu_indices`` order: the pair's index p, and the position of
+        block (a, b) and of block (b, a) among the pairs' blocks [(lo, hi) blocks; (hi, lo)
+        blocks] (p, or p + the number of pairs); with the cells, the diagonal blocks' index."""
         cells, n = self._cells, self.n_nodes
         del self._cells  # needed for nothing else
         n_cells, nl = cells.shape
-        # each cell's pairs among the distinct ones: searched here, after upper() has let the
-        # analysis start (1.29 M cells: the distinct pairs alone take 0.13-0.15 s, with
-        # np.unique's inverse 0.40 s)
+        # searched here, after upper() has let the analysis start (1.29 M cells: the distinct
+        # pairs alone take 0.13-0.15 s, with np.unique's inverse 0.40 s)
         inverse = np.searchsorted(self._lo.astype(np.int64) * n + self._hi,
                                   pair_keys(cells, n)).reshape(n_cells, -1)
-        a, b = np.triu_indices(nl, k=1)
-        where = np.empty((n_cells, nl, nl), dtype=np.intp)
-        where[:, np.arange(nl), np.arange(nl)] = diag[cells]
-        in_upper, in_lower = upper[inverse], lower[inverse]
-        ab = np.where(cells[:, a] < cells[:, b], in_upper, in_lower)  # (u, v) is in row u
-        where[:, a, b], where[:, b, a] = ab, in_upper + in_lower - ab
-        return where
+        a, b = local_pairs(nl)
+        flip = len(self._lo) * (cells[:, a] > cells[:, b])  # (a, b) is the pair's (hi, lo)
+        across = len(self._lo) - flip
+        return cells, inverse, inverse + flip, inverse + across
 
     @cached_property
     def _at(self) -> list:
@@ -144,9 +144,29 @@ class BlockPattern:
         out[1:] = np.cumsum(keep, dtype=itype)[np.cumsum(length) - 1]
         return out, cols[keep]
 
-    def block_sums(self, values: np.ndarray) -> np.ndarray:
-        """Sum of cell values (n_cells, n_local, n_local) into the node pattern (nnz,)."""
-        return np.bincount(self.where.ravel(), weights=values.ravel(), minlength=self.nnz)
+    def sums(self, diagonal: np.ndarray, up: np.ndarray, down: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """One block component (k, m) summed over the cells into the node pattern (nnz,), and
+        its transpose, component (m, k): ``diagonal`` (n_cells, n_local) the cells' values at
+        their local blocks (a, a), ``up`` (n_cells, n_pairs) at (a, b) and ``down`` at (b, a)
+        for the local pairs a < b (:func:`local_pairs`). Without ``down`` the component is
+        symmetric: ``up`` serves both, and the transpose is the same array."""
+        cells, inverse, ab, ba = self._local
+        _, _, diag, upper, lower = self._node
+        n_pairs = len(self._lo)
+        out = np.empty(self.nnz)
+        out[diag] = np.bincount(cells.ravel(), weights=diagonal.ravel(), minlength=self.n_nodes)
+        if down is None:
+            out[upper] = out[lower] = np.bincount(inverse.ravel(), weights=up.ravel(),
+                                                  minlength=n_pairs)
+            return out, out
+        both = np.bincount(ab.ravel(), weights=up.ravel(), minlength=2 * n_pairs)
+        both += np.bincount(ba.ravel(), weights=down.ravel(), minlength=2 * n_pairs)
+        out[upper], out[lower] = both[:n_pairs], both[n_pairs:]
+        transposed = np.empty(self.nnz)
+        transposed[diag] = out[diag]
+        transposed[upper], transposed[lower] = both[n_pairs:], both[:n_pairs]
+        return out, transposed
 
     def csr(self, blocks) -> sp.csr_matrix:
         """The DOF matrix (dim n_nodes square, sorted indices) whose dim x dim block q has
@@ -191,6 +211,11 @@ def upper_pattern(indptr: np.ndarray, indices: np.ndarray, position: np.ndarray 
     ptr = np.zeros(m + 1, dtype=indptr.dtype)
     np.cumsum(np.bincount(new_row[keep], minlength=m), out=ptr[1:])
     return ptr, new_col[keep], keep
+
+
+def local_pairs(n_local: int) -> tuple[np.ndarray, np.ndarray]:
+    """A cell's local node pairs (a, b), a < b, in the order of every per-pair array here."""
+    return np.triu_indices(n_local, k=1)
 
 
 def pair_keys(cells: np.ndarray, n: int) -> np.ndarray:

@@ -352,24 +352,34 @@ def test_upper_pattern_from_the_node_pattern(name, dim):
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_block_sums_equal_a_coo_sum_for_cells_in_any_order(name):
-    """Each cell's node pairs are located among the distinct pairs by a search: the block
-    sums equal scipy's COO sum of duplicates for the cells shuffled and each cell's nodes
-    rolled (the pairs then come as (hi, lo) as well as (lo, hi))."""
-    from critfric.fem.pattern import BlockPattern
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_sums_equal_a_coo_sum_for_cells_in_any_order(name, symmetric):
+    """Each cell's node pairs are located among the distinct pairs by a search: the sums of
+    a component and of its transpose equal scipy's COO sums of duplicates for the cells
+    shuffled and each cell's nodes rolled (the pairs then come as (hi, lo) as well as (lo,
+    hi)); a symmetric component is read from the local blocks a <= b alone."""
+    from critfric.fem.pattern import BlockPattern, local_pairs
 
     mesh = MESHES[name]
     rng = np.random.default_rng(7)
     cells = np.roll(mesh.cells[rng.permutation(len(mesh.cells))], 1, axis=1)
     pattern = BlockPattern(cells, mesh.n_nodes)
-    values = rng.standard_normal(cells.shape + cells.shape[1:])
-    got = sp.csr_matrix((pattern.block_sums(values), pattern._col, pattern._ptr),
-                        shape=(mesh.n_nodes, mesh.n_nodes))
+    nl = cells.shape[1]
+    values = rng.standard_normal((len(cells), nl, nl))
+    if symmetric:
+        values += values.transpose(0, 2, 1)
+    a, b = local_pairs(nl)
+    parts = [values[:, np.arange(nl), np.arange(nl)], values[:, a, b]]
+    got = pattern.sums(*parts, None if symmetric else values[:, b, a])
     rows = np.broadcast_to(cells[:, :, None], values.shape).ravel()
     cols = np.broadcast_to(cells[:, None, :], values.shape).ravel()
-    want = sp.coo_matrix((values.ravel(), (rows, cols)), shape=got.shape).tocsr()
-    assert abs(got - want).max() < 1e-12 * abs(want).max()
-    assert got.nnz == want.nnz
+    for entries, local in zip(got, (values, values.transpose(0, 2, 1))):
+        have = sp.csr_matrix((entries, pattern._col, pattern._ptr),
+                             shape=(mesh.n_nodes, mesh.n_nodes))
+        want = sp.coo_matrix((local.ravel(), (rows, cols)), shape=have.shape).tocsr()
+        assert abs(have - want).max() < 1e-12 * abs(want).max()
+        assert have.nnz == want.nnz
+    assert (got[0] is got[1]) == symmetric
 
 
 def test_pattern_handed_over_before_the_geometry():
