@@ -195,7 +195,13 @@ def reduced_size(n: int, p: int, modes: int) -> int:
         return n
     k = min(modes + EXTRA_MODES, n - 2)
     corrected = min(k, modes + CORRECTED_EXTRA)
-    return min(n, k + min(3 * p, 4 * corrected))
+    return min(n, k + (3 * p if _contact_basis(p, corrected) else 2 * corrected))
+
+
+def _contact_basis(p: int, corrected: int) -> bool:
+    """The "auto" basis: the contact one (3 p columns, divergence exact in the model) while
+    it has at most twice the modal one's 2 ``corrected`` columns."""
+    return 3 * p <= 4 * corrected
 
 
 def reduce(pencil: SlidingPencil, modes: int, *, backend: str = "scipy", order=None,
@@ -204,9 +210,10 @@ def reduce(pencil: SlidingPencil, modes: int, *, backend: str = "scipy", order=N
 
     The basis holds the ``modes`` + ``EXTRA_MODES`` lowest free-vibration modes Phi and:
     basis "contact": the static responses to every contact load (3 p columns: divergence
-    exact in the model); "modal": the first-order corrections K^-1 G C Phi, K^-1 C^T G^T Phi
-    (C = K_nr, M_nr) of the ``modes`` + ``CORRECTED_EXTRA`` lowest (4 columns a mode,
-    independent of p); "auto": "contact" while 3 p is at most the modal columns. ``factor``:
+    exact in the model); "modal": the first-order corrections K^-1 G C_i phi_i and
+    K^-1 C_i^T G^T phi_i (C_i = K_nr - omega_i^2 M_nr: the friction derivative of L at mode
+    i's own kappa) of the ``modes`` + ``CORRECTED_EXTRA`` lowest (2 columns a mode,
+    independent of p); "auto": "contact" while 3 p is at most twice the modal columns. ``factor``:
     a factorization of K_rr to use (the one that also serves the sharpening and
     Newton's bordered solves), else one is made. ``threads``: the model's ``threads``
     (default: the OpenBLAS thread count in effect).
@@ -232,7 +239,7 @@ def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str) -> Reduced:
     p0 = pencil.G.shape[1]
     corrected = min(k, modes + CORRECTED_EXTRA)
     if basis == "auto":
-        basis = "contact" if 3 * p0 <= 4 * corrected else "modal"
+        basis = "contact" if _contact_basis(p0, corrected) else "modal"
     blocks = blocks_of(pencil)
     # column-major right-hand sides and basis, written in place: the solves read and write
     # columns, and a row-major n x 60 array costs a transposed copy each way
@@ -240,12 +247,16 @@ def _reduce(pencil: SlidingPencil, modes: int, factor, basis: str) -> Reduced:
         loads = np.empty((n, 3 * p0), order="F")
         for j, b in enumerate((pencil.G, pencil.Knr.T, pencil.Mnr.T)):
             b.toarray(out=loads[:, j * p0:(j + 1) * p0])
-    else:  # how each mode's contact forces load the body, right and left: G C Phi, C^T G^T Phi
-        low = vecs[:, :corrected]
-        loads = np.empty((n, 4 * corrected), order="F")
-        for j, (b, transpose) in enumerate(((blocks[1], False), (blocks[3], False),
-                                            (blocks[1], True), (blocks[3], True))):
-            b.product(low, loads[:, j * corrected:(j + 1) * corrected], transpose)
+    else:  # how each mode's contact forces load the body at its own kappa, right and left:
+        # G C_i phi_i, C_i^T G^T phi_i with C_i = K_nr - omega_i^2 M_nr
+        low, mass = vecs[:, :corrected], np.empty((n, corrected), order="F")
+        loads = np.empty((n, 2 * corrected), order="F")
+        for j, transpose in enumerate((False, True)):
+            part = loads[:, j * corrected:(j + 1) * corrected]
+            blocks[1].product(low, part, transpose)
+            blocks[3].product(low, mass, transpose)
+            part -= mass * w[:corrected]
+        del mass
     W = np.empty((n, k + loads.shape[1]), order="F")
     W[:, :k] = vecs
     W[:, k:] = factor.solve(loads)
