@@ -12,8 +12,11 @@ sigma_x = -w^T L_x v with w from the transposed system. Newton's method on
     sigma(f, kappa) = 0,   sigma_kappa(f, kappa) = 0
 
 (a double root in kappa) converges quadratically: 3-4 steps from 5e-5, one from the
-sharpened guess of :func:`critfric.stability.locus.sharpen` (its first correction is below
-FOLD_TOL). The bordered solves: :class:`.bordered.Deflated` (GMRES on the factorization of
+sharpened guess of :func:`critfric.stability.sharpen.sharpen` (its first correction is below
+FOLD_TOL). The Jacobian's first row (sigma_f, sigma_kappa) comes with sigma from v and w; its
+second row takes four more solves (v and w differentiated), or, at a sharpened guess, comes
+from the sharpened model's own Newton (``row``): it only scales a correction of ~1e-10, and
+an error e in it leaves e times that (the first step's solves stay on the full pencil). The bordered solves: :class:`.bordered.Deflated` (GMRES on the factorization of
 K_rr, given as ``solver``) or :class:`.bordered.Bordered` (an LU of the bordered matrix, and
 iterative refinement on it for the further steps), which also takes over where the deflated
 solves stall. Each solve's residual is checked on the bordered matrix itself, down to
@@ -44,18 +47,22 @@ class Fold:
     left: np.ndarray
     steps: int
     residual: float  # ||L v|| / (||L|| ||v||) at the solution
+    row: np.ndarray | None = field(default=None, repr=False)  # the last Jacobian's second
+    # row (d sigma_kappa / d(f, kappa)): a sharpened guess's for the full pencil's Newton
     solver: Bordered | Deflated | None = field(default=None, repr=False)  # for the next run
 
 
 def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
-              left: np.ndarray, *, backend: str = "scipy", order=None,
-              solver: Bordered | Deflated | None = None) -> Fold:
+              left: np.ndarray, row: np.ndarray | None = None, *, backend: str = "scipy",
+              order=None, solver: Bordered | Deflated | None = None) -> Fold:
     """Newton's method for the coalescence nearest (f0, kappa0); SolverError if it fails.
-    ``solver``: a :class:`Deflated` on the pencil's K_rr, or the solver of an earlier call
-    on the same pencil (the other direction; PARDISO reuses a :class:`Bordered`'s analysis);
-    None: :class:`Bordered`."""
+    ``row``: the Jacobian's second row at the start, from a reduced model (the first step
+    then takes no solves for it). ``solver``: a :class:`Deflated` on the pencil's K_rr, or
+    the solver of an earlier call on the same pencil (the other direction; PARDISO reuses a
+    :class:`Bordered`'s analysis); None: :class:`Bordered`."""
     F = Bordered(backend, order) if solver is None else solver.renewed()
-    return drive([_newton(pencil, f0, kappa0, right, left, F, backend, order)], _each)[0]
+    return drive([_newton(pencil, f0, kappa0, right, left, row, F, backend, order)],
+                  _each)[0]
 
 
 def _each(requests: list[tuple]) -> list:
@@ -72,7 +79,7 @@ def _each(requests: list[tuple]) -> list:
 
 def find_folds(pencil: SlidingPencil, starts: list[tuple], *, backend: str = "scipy",
                order=None, solver: Bordered | Deflated | None = None) -> list[Fold]:
-    """:func:`find_fold` from each start (f0, kappa0, right, left). With a :class:`Deflated`
+    """:func:`find_fold` from each start (f0, kappa0, right, left[, row]). With a :class:`Deflated`
     solver, their Newton steps run in lockstep, every GMRES iteration's solves with K_rr in
     one call (:func:`.bordered.solve_jointly`); if any of them stalls, one after the other
     from their starts (the solver passed on, as it falls back on an LU)."""
@@ -83,24 +90,30 @@ def find_folds(pencil: SlidingPencil, starts: list[tuple], *, backend: str = "sc
             pass
     found = []
     for start in starts:
-        found.append(find_fold(pencil, *start, backend=backend, order=order, solver=solver))
+        found.append(find_fold(pencil, *_padded(start), backend=backend, order=order,
+                               solver=solver))
         solver = found[-1].solver
     return found
 
 
 def _lockstep(pencil: SlidingPencil, starts: list[tuple], solver: Deflated, backend: str,
               order) -> list[Fold]:
-    runs = [_newton(pencil, *start, solver if i == 0 else solver.sibling(), backend, order)
-            for i, start in enumerate(starts)]
+    runs = [_newton(pencil, *_padded(start), solver if i == 0 else solver.sibling(), backend,
+                    order) for i, start in enumerate(starts)]
     return drive(runs, solve_jointly)  # NotConverged: given up
 
 
+def _padded(start: tuple) -> tuple:
+    """A start (f0, kappa0, right, left[, row]) with its row (None if not given)."""
+    return tuple(start) + (None,) * (5 - len(start))
+
+
 def _newton(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
-            left: np.ndarray, F, backend: str, order):
+            left: np.ndarray, row: np.ndarray | None, F, backend: str, order):
     """Newton's method from (f0, kappa0) on solver F, as a generator: it yields its
     bordered solves as requests (solver, systems, rough), is sent their solutions (or
     thrown NotConverged: it then factors the bordered matrix, :class:`Bordered`) and
-    returns the Fold."""
+    returns the Fold. ``row``: the first step's Jacobian second row (module docstring)."""
     n = pencil.size
     f, kappa = float(f0), float(kappa0)
     c, b = _unit(right), _unit(left)
@@ -108,19 +121,20 @@ def _newton(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
     for step in range(1, MAX_STEPS + 1):
         B = pencil.B(f)  # L = A(f) - kappa B(f) and dL/dkappa = -B(f) from one B(f)
         L, Lk = (pencil.A(f) - kappa * B).tocsr(), -B
+        given = row if step == 1 else None
         try:
-            df, dk, v, w = yield from _step(F, pencil, L, Lk, L_kf, f, kappa, b, c)
+            df, dk, v, w, J = yield from _step(F, pencil, L, Lk, L_kf, f, kappa, b, c, given)
         except NotConverged:  # the deflated solves stalled: factor the bordered matrix
             F.release()
             F = Bordered(backend, order)
-            df, dk, v, w = yield from _step(F, pencil, L, Lk, L_kf, f, kappa, b, c)
+            df, dk, v, w, J = yield from _step(F, pencil, L, Lk, L_kf, f, kappa, b, c, given)
         f, kappa = f + df, kappa + dk
         c, b = _unit(v), _unit(w)  # better borders: the current null vectors
         if abs(df) <= FOLD_TOL * max(abs(f), 1e-300) and abs(dk) <= FOLD_TOL * abs(kappa):
             # |L| from the last step's matrix: its entries differ by the step, ~1e-10
             res = (np.linalg.norm(pencil.apply_L(f, kappa, c))
                    / max(abs(L).max() * np.sqrt(n), 1e-300))
-            return Fold(f, kappa, c, b, step, float(res), F)
+            return Fold(f, kappa, c, b, step, float(res), solver=F, row=J[1])
         if not (np.isfinite(f) and np.isfinite(kappa)):
             break
     raise SolverError(f"Newton's method for the flutter onset did not converge from friction "
@@ -128,9 +142,10 @@ def _newton(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
 
 
 def _step(F, pencil: SlidingPencil, L, Lk, L_kf, f: float, kappa: float, b: np.ndarray,
-          c: np.ndarray):
+          c: np.ndarray, row: np.ndarray | None):
     """One Newton step on (sigma, sigma_kappa) = 0 at L = L(f, kappa), Lk = dL/dkappa:
-    (df, dkappa) and the null vectors v, w (a generator, as :func:`_newton`)."""
+    (df, dkappa), the null vectors v, w and the Jacobian (a generator, as :func:`_newton`);
+    its second row ``row`` if given, else from four more solves."""
     n = pencil.size
     F.set(L, b, c)
     e = np.zeros(n + 1)
@@ -140,23 +155,32 @@ def _step(F, pencil: SlidingPencil, L, Lk, L_kf, f: float, kappa: float, b: np.n
     Lf = pencil.L_f(kappa)
     Lkv, Lfv = Lk @ v, Lf @ v
     s_k, s_f = -w @ Lkv, -w @ Lfv
-
-    def bordered_rhs(x: np.ndarray) -> np.ndarray:
-        return np.concatenate([x, [0.0]])
-
-    # v_kappa, v_f, w_kappa, w_f: only the Jacobian's
-    v_k, v_f, w_k, w_f = (x[:n] for x in (yield F, [
-        (bordered_rhs(-Lkv), False), (bordered_rhs(-Lfv), False),
-        (bordered_rhs(-(Lk.T @ w)), True), (bordered_rhs(-(Lf.T @ w)), True)], True))
-    s_kk = -(w_k @ Lkv + w @ (Lk @ v_k))
-    s_kf = -(w_f @ Lkv + w @ (L_kf @ v) + w @ (Lk @ v_f))
-    J = np.array([[s_f, s_k], [s_kf, s_kk]])
+    if row is None:
+        row = yield from _second_row(F, L_kf, Lk, Lf, v, w, Lkv, Lfv)
+    J = np.array([[s_f, s_k], row])
     try:
         df, dk = np.linalg.solve(J, -np.array([sigma, s_k]))
     except np.linalg.LinAlgError:
         raise SolverError("the coalescence is degenerate (singular Newton matrix at "
                           f"friction {f:.6g}); try more --steps") from None
-    return float(df), float(dk), v, w
+    return float(df), float(dk), v, w, J
+
+
+def _second_row(F, L_kf, Lk, Lf, v: np.ndarray, w: np.ndarray, Lkv: np.ndarray,
+                Lfv: np.ndarray):
+    """(sigma_kappa_f, sigma_kappa_kappa) from v_kappa, v_f, w_kappa, w_f (four bordered
+    solves, to ROUGH_TOL; a generator, as :func:`_newton`)."""
+    n = len(v)
+
+    def bordered_rhs(x: np.ndarray) -> np.ndarray:
+        return np.concatenate([x, [0.0]])
+
+    v_k, v_f, w_k, w_f = (x[:n] for x in (yield F, [
+        (bordered_rhs(-Lkv), False), (bordered_rhs(-Lfv), False),
+        (bordered_rhs(-(Lk.T @ w)), True), (bordered_rhs(-(Lf.T @ w)), True)], True))
+    s_kk = -(w_k @ Lkv + w @ (Lk @ v_k))
+    s_kf = -(w_f @ Lkv + w @ (L_kf @ v) + w @ (Lk @ v_f))
+    return s_kf, s_kk
 
 
 def _unit(x: np.ndarray) -> np.ndarray:
