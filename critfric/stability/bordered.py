@@ -87,6 +87,15 @@ def orthonormal(W: np.ndarray, *, overwrite: bool = False) -> np.ndarray:
     return np.matmul(Q, square, out=out)
 
 
+def tdot(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """A^T B for A, B of n rows and few columns (B may be a vector), as (B^T A)^T: the same
+    numbers (the same dot products), and OpenBLAS's kernel for that form is faster at this
+    shape (295 k rows, one thread: A row-major with 50 columns against B column-major with
+    4, 8 and 16 columns 15, 24 and 32 ms against 39, 45 and 49 ms; never slower, measured
+    for 1-50 columns either way)."""
+    return (B.T @ A).T
+
+
 def _small(r: np.ndarray, x: np.ndarray, norm: float, tol: float) -> bool:
     return np.max(np.abs(r)) <= tol * norm * max(np.max(np.abs(x)), 1e-300)
 
@@ -119,7 +128,7 @@ class Deflated:
         self.norm = _row_norm(self.L, b, c)
         bc = np.column_stack([b, c])
         for _ in range(2):  # b and c outside the modes' span ("twice is enough")
-            bc -= self.Q @ (self.Q.T @ bc)
+            bc -= self.Q @ tdot(self.Q, bc)
         self.E = orthonormal(bc)  # Z = [Q, E], kept apart (Q is the larger: not copied)
         m = self.Q.shape[1] + self.E.shape[1]
         coarse = np.zeros((m + 1, m + 1))
@@ -130,7 +139,7 @@ class Deflated:
 
     def _Zt(self, u: np.ndarray) -> np.ndarray:
         """Z^T u."""
-        return np.concatenate([self.Q.T @ u, self.E.T @ u])
+        return np.concatenate([tdot(self.Q, u), tdot(self.E, u)])
 
     def _Z(self, y: np.ndarray) -> np.ndarray:
         """Z y."""

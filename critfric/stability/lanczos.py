@@ -28,6 +28,7 @@ import numpy as np
 import scipy.linalg as la
 
 from ..guards import available_memory
+from .bordered import tdot
 
 #: block sizes by linear-solver backend (the factorization's ``backend``); a backend not
 #: listed uses ARPACK
@@ -74,10 +75,10 @@ def lowest_modes(K, M, solve, k: int, *, block: int, tol, seed: int
         W = solve(MQ[-1])
         MW = M @ W
         lo = max(0, j - block)
-        H = Q[:, lo:c].T @ MW  # the recurrence's coefficients
+        H = tdot(Q[:, lo:c], MW)  # the recurrence's coefficients
         W -= Q[:, lo:c] @ H
         MW -= np.hstack(MQ) @ H
-        C = Q[:, :c].T @ MW  # once against every block
+        C = tdot(Q[:, :c], MW)  # once against every block
         W -= Q[:, :c] @ C
         C[lo:c] += H
         T[:c, j:c] = C

@@ -28,7 +28,7 @@ from ..errors import SolverError
 from ..solvers.backends import PardisoPlan, factorize
 from ..solvers.pardiso import upper_triangle
 from . import lanczos
-from .bordered import orthonormal
+from .bordered import orthonormal, tdot
 from .pencil import SlidingPencil
 
 FULL_MAX = 80  # kept DOFs up to which the full pencil is followed densely (QZ per step)
@@ -161,20 +161,20 @@ class Block:
     def form(self, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
         """X^T b Y."""
         if self.sub is None:
-            return X.T @ (self.b @ Y)
-        return X[self.rows].T @ (self.sub @ Y[self.cols])
+            return tdot(X, self.b @ Y)
+        return tdot(X[self.rows], self.sub @ Y[self.cols])
 
     def borders(self, Ws: list[np.ndarray], N: np.ndarray) -> tuple:
         """W^T b N, W^T b^T N (W: the column blocks Ws side by side) and N^T b N."""
         if self.sub is None:
             bN = self.b @ N
-            right = np.concatenate([W.T @ bN for W in Ws])
-            below = right if self.symmetric else np.concatenate([W.T @ (self.b.T @ N)
+            right = np.concatenate([tdot(W, bN) for W in Ws])
+            below = right if self.symmetric else np.concatenate([tdot(W, self.b.T @ N)
                                                                  for W in Ws])
-            return right, below, N.T @ bN
+            return right, below, tdot(N, bN)
         bN, bTN = self.sub @ N[self.cols], self.sub.T @ N[self.rows]
-        return (np.concatenate([W[self.rows].T @ bN for W in Ws]),
-                np.concatenate([W[self.cols].T @ bTN for W in Ws]), N[self.rows].T @ bN)
+        return (np.concatenate([tdot(W[self.rows], bN) for W in Ws]),
+                np.concatenate([tdot(W[self.cols], bTN) for W in Ws]), tdot(N[self.rows], bN))
 
 
 def _matrices(pencil: SlidingPencil) -> tuple:

@@ -22,7 +22,7 @@ from threadpoolctl import threadpool_limits
 
 from ..errors import SolverError
 from . import fold
-from .bordered import RANK_TOL, orthonormal
+from .bordered import RANK_TOL, orthonormal, tdot
 from .locus import Block, Guess, Reduced, blocks_of
 from .pencil import SlidingPencil
 
@@ -102,7 +102,7 @@ def _sharpen(red: Reduced, pencil: SlidingPencil, factor, guesses: list[Guess]
              ) -> list[Guess]:
     V, m = red.V, red.V.shape[1]
     blocks = blocks_of(pencil)
-    yz = V.T @ np.column_stack([x for g in guesses for x in (g.right, g.left)])
+    yz = tdot(V, np.column_stack([x for g in guesses for x in (g.right, g.left)]))
     runs = [_Run(red, g, yz[:, 2 * i:2 * i + 2]) for i, g in enumerate(guesses)]
     for rnd in range(SHARPEN_ROUNDS + 1):
         for run in runs:
@@ -149,8 +149,8 @@ def _outside(V: np.ndarray, Ts: list[np.ndarray], X: np.ndarray) -> list[np.ndar
     parts = [slice(WIDE * i, WIDE * (i + 1)) for i in range(len(Ts))]
     before = np.linalg.norm(X, axis=0)
     for sweep in range(2):
-        C = V.T @ X
-        D = [T.T @ X[:, part] for T, part in zip(Ts, parts)]
+        C = tdot(V, X)
+        D = [tdot(T, X[:, part]) for T, part in zip(Ts, parts)]
         X = X - V @ C
         for T, part, Di in zip(Ts, parts, D):
             X[:, part] -= T @ Di
@@ -172,14 +172,14 @@ def _borders(blocks: list[Block], V: np.ndarray, Ts: list[np.ndarray],
         return []
     bN = [[b.b @ N for b in whole] for N in Ns]
     flat = [x for row in bN for x in row]
-    right_V = V.T @ np.hstack(flat) if flat else None
+    right_V = tdot(V, np.hstack(flat)) if flat else None
     out, col = [], 0
     for T, N, row in zip(Ts, Ns, bN):
         done = {}
         for b, bNi in zip(whole, row):
             k = bNi.shape[1]
-            right = np.concatenate([right_V[:, col:col + k], T.T @ bNi])
-            done[id(b)] = (right, right, N.T @ bNi)
+            right = np.concatenate([right_V[:, col:col + k], tdot(T, bNi)])
+            done[id(b)] = (right, right, tdot(N, bNi))
             col += k
         out.append([done[id(b)] if id(b) in done else b.borders([V, T], N) for b in blocks])
     return out
