@@ -9,7 +9,7 @@ the dim columns dim j + m of every neighbour j, in the node order. One sort give
 node pairs of the cells (a < b), and a search in them locates every cell's node pairs in that
 pattern; assembling a block component is then a ``bincount`` over the cells' diagonal blocks
 and one or two over their node pairs, in cell order: a symmetric component is summed from the
-cells' local pairs a < b alone and is exactly symmetric, and a component (k, m) gives its
+cells' local blocks a <= b alone and is exactly symmetric, and a component (k, m) gives its
 transpose (m, k) with it.
 """
 
@@ -222,7 +222,7 @@ def pair_keys(cells: np.ndarray, n: int) -> np.ndarray:
     """lo * n + hi (int64) of every cell's local node pairs (a < b), cell after cell: the
     node pair lo < hi of ``n`` nodes as one sortable key."""
     cells = np.asarray(cells, dtype=np.int64)
-    a, b = np.triu_indices(cells.shape[1], k=1)
+    a, b = local_pairs(cells.shape[1])
     u, v = cells[:, a], cells[:, b]
     return (np.minimum(u, v) * n + np.maximum(u, v)).ravel()
 

@@ -223,7 +223,7 @@ def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
     solver = None if factor is None else Deflated(factor, red.modes0)
     factor = None
     t4 = time.perf_counter()
-    starts = [(g.friction, g.kappa, g.right, g.left, g.row) for g in sharp.values()]
+    starts = [(g.friction, g.kappa, g.right, g.left, g.jacobian) for g in sharp.values()]
     founds = fold.find_folds(pencil, starts, backend=backend, order=order, solver=solver)
     for (direction, guess), found in zip(guesses.items(), founds):
         if abs(found.friction - guess.friction) > 1e-3 * abs(guess.friction):

@@ -15,8 +15,10 @@ sigma_x = -w^T L_x v with w from the transposed system. Newton's method on
 sharpened guess of :func:`critfric.stability.sharpen.sharpen` (its first correction is below
 FOLD_TOL). The Jacobian's first row (sigma_f, sigma_kappa) comes with sigma from v and w; its
 second row takes four more solves (v and w differentiated), or, at a sharpened guess, comes
-from the sharpened model's own Newton (``row``): it only scales a correction of ~1e-10, and
-an error e in it leaves e times that (the first step's solves stay on the full pencil). The bordered solves: :class:`.bordered.Deflated` (GMRES on the factorization of
+from the sharpened model's own Newton (its Jacobian ``model``, taken where its first row
+agrees with the full pencil's to MODEL_TOL): it only scales a correction of ~1e-10, and an
+error e in it leaves e times that (the first step's solves stay on the full pencil). The
+bordered solves: :class:`.bordered.Deflated` (GMRES on the factorization of
 K_rr, given as ``solver``) or :class:`.bordered.Bordered` (an LU of the bordered matrix, and
 iterative refinement on it for the further steps), which also takes over where the deflated
 solves stall. Each solve's residual is checked on the bordered matrix itself, down to
@@ -37,6 +39,8 @@ FOLD_TOL = 1e-9  # relative Newton step after which the coalescence is converged
 # convergence is quadratic, and the steps after it stall at the rounding of the bordered
 # solves at a double root (1e-11 to 3e-10 relative, measured): the onset to ~1e-10
 MAX_STEPS = 25
+MODEL_TOL = 1e-3  # a reduced model's Jacobian serves the first step where its first row is
+# the full pencil's to this (relative): its second row is then as close, and scales the step
 
 
 @dataclass
@@ -47,21 +51,20 @@ class Fold:
     left: np.ndarray
     steps: int
     residual: float  # ||L v|| / (||L|| ||v||) at the solution
-    row: np.ndarray | None = field(default=None, repr=False)  # the last Jacobian's second
-    # row (d sigma_kappa / d(f, kappa)): a sharpened guess's for the full pencil's Newton
+    jacobian: np.ndarray | None = field(default=None, repr=False)  # the last step's, 2 x 2
     solver: Bordered | Deflated | None = field(default=None, repr=False)  # for the next run
 
 
 def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
-              left: np.ndarray, row: np.ndarray | None = None, *, backend: str = "scipy",
+              left: np.ndarray, model: np.ndarray | None = None, *, backend: str = "scipy",
               order=None, solver: Bordered | Deflated | None = None) -> Fold:
     """Newton's method for the coalescence nearest (f0, kappa0); SolverError if it fails.
-    ``row``: the Jacobian's second row at the start, from a reduced model (the first step
-    then takes no solves for it). ``solver``: a :class:`Deflated` on the pencil's K_rr, or
-    the solver of an earlier call on the same pencil (the other direction; PARDISO reuses a
-    :class:`Bordered`'s analysis); None: :class:`Bordered`."""
+    ``model``: the Jacobian at the start from a reduced model (module docstring: its second
+    row may spare the first step four solves). ``solver``: a :class:`Deflated` on the
+    pencil's K_rr, or the solver of an earlier call on the same pencil (the other direction;
+    PARDISO reuses a :class:`Bordered`'s analysis); None: :class:`Bordered`."""
     F = Bordered(backend, order) if solver is None else solver.renewed()
-    return drive([_newton(pencil, f0, kappa0, right, left, row, F, backend, order)],
+    return drive([_newton(pencil, f0, kappa0, right, left, model, F, backend, order)],
                   _each)[0]
 
 
@@ -79,7 +82,8 @@ def _each(requests: list[tuple]) -> list:
 
 def find_folds(pencil: SlidingPencil, starts: list[tuple], *, backend: str = "scipy",
                order=None, solver: Bordered | Deflated | None = None) -> list[Fold]:
-    """:func:`find_fold` from each start (f0, kappa0, right, left[, row]). With a :class:`Deflated`
+    """:func:`find_fold` from each start (f0, kappa0, right, left[, model]). With a
+    :class:`Deflated`
     solver, their Newton steps run in lockstep, every GMRES iteration's solves with K_rr in
     one call (:func:`.bordered.solve_jointly`); if any of them stalls, one after the other
     from their starts (the solver passed on, as it falls back on an LU)."""
@@ -104,16 +108,17 @@ def _lockstep(pencil: SlidingPencil, starts: list[tuple], solver: Deflated, back
 
 
 def _padded(start: tuple) -> tuple:
-    """A start (f0, kappa0, right, left[, row]) with its row (None if not given)."""
+    """A start (f0, kappa0, right, left[, model]), its model None if not given."""
     return tuple(start) + (None,) * (5 - len(start))
 
 
 def _newton(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
-            left: np.ndarray, row: np.ndarray | None, F, backend: str, order):
+            left: np.ndarray, model: np.ndarray | None, F, backend: str, order):
     """Newton's method from (f0, kappa0) on solver F, as a generator: it yields its
     bordered solves as requests (solver, systems, rough), is sent their solutions (or
     thrown NotConverged: it then factors the bordered matrix, :class:`Bordered`) and
-    returns the Fold. ``row``: the first step's Jacobian second row (module docstring)."""
+    returns the Fold. ``model``: a reduced model's Jacobian at the start (module
+    docstring)."""
     n = pencil.size
     f, kappa = float(f0), float(kappa0)
     c, b = _unit(right), _unit(left)
@@ -121,7 +126,7 @@ def _newton(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
     for step in range(1, MAX_STEPS + 1):
         B = pencil.B(f)  # L = A(f) - kappa B(f) and dL/dkappa = -B(f) from one B(f)
         L, Lk = (pencil.A(f) - kappa * B).tocsr(), -B
-        given = row if step == 1 else None
+        given = model if step == 1 else None
         try:
             df, dk, v, w, J = yield from _step(F, pencil, L, Lk, L_kf, f, kappa, b, c, given)
         except NotConverged:  # the deflated solves stalled: factor the bordered matrix
@@ -134,7 +139,7 @@ def _newton(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
             # |L| from the last step's matrix: its entries differ by the step, ~1e-10
             res = (np.linalg.norm(pencil.apply_L(f, kappa, c))
                    / max(abs(L).max() * np.sqrt(n), 1e-300))
-            return Fold(f, kappa, c, b, step, float(res), solver=F, row=J[1])
+            return Fold(f, kappa, c, b, step, float(res), solver=F, jacobian=J)
         if not (np.isfinite(f) and np.isfinite(kappa)):
             break
     raise SolverError(f"Newton's method for the flutter onset did not converge from friction "
@@ -142,10 +147,11 @@ def _newton(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
 
 
 def _step(F, pencil: SlidingPencil, L, Lk, L_kf, f: float, kappa: float, b: np.ndarray,
-          c: np.ndarray, row: np.ndarray | None):
+          c: np.ndarray, model: np.ndarray | None):
     """One Newton step on (sigma, sigma_kappa) = 0 at L = L(f, kappa), Lk = dL/dkappa:
     (df, dkappa), the null vectors v, w and the Jacobian (a generator, as :func:`_newton`);
-    its second row ``row`` if given, else from four more solves."""
+    its second row ``model``'s where that agrees (module docstring), else from four more
+    solves."""
     n = pencil.size
     F.set(L, b, c)
     e = np.zeros(n + 1)
@@ -155,9 +161,13 @@ def _step(F, pencil: SlidingPencil, L, Lk, L_kf, f: float, kappa: float, b: np.n
     Lf = pencil.L_f(kappa)
     Lkv, Lfv = Lk @ v, Lf @ v
     s_k, s_f = -w @ Lkv, -w @ Lfv
-    if row is None:
+    first = np.array([s_f, s_k])
+    if model is not None and (np.linalg.norm(model[0] - first)
+                              <= MODEL_TOL * np.linalg.norm(first)):
+        row = model[1]
+    else:
         row = yield from _second_row(F, L_kf, Lk, Lf, v, w, Lkv, Lfv)
-    J = np.array([[s_f, s_k], row])
+    J = np.array([first, row])
     try:
         df, dk = np.linalg.solve(J, -np.array([sigma, s_k]))
     except np.linalg.LinAlgError:

@@ -349,7 +349,7 @@ class Guess:
     right: np.ndarray  # kept DOFs
     left: np.ndarray
     branch: int  # index of a branch that flutters
-    row: np.ndarray | None = None  # a sharpened guess: its model's Newton Jacobian, second row
+    jacobian: np.ndarray | None = None  # a sharpened guess: its model's Newton Jacobian
 
 
 def locate_flutter(red: Reduced, branches: Branches) -> Guess | None:

@@ -54,7 +54,7 @@ class _Run:
         self.t = 0
         self.f, self.kappa, self.branch = guess.friction, guess.kappa, guess.branch
         self.y, self.z = yz.T
-        self.row = None  # the last small Newton's Jacobian, second row (fold.Fold.row)
+        self.jacobian = None  # the last small Newton's (fold.Fold.jacobian)
         self.active = True
 
     def find(self, rnd: int) -> None:
@@ -68,13 +68,13 @@ class _Run:
         try:
             found = fold.find_fold(small, self.f, self.kappa, self.y, self.z)
         except SolverError:
-            self.active, self.row = False, None
+            self.active, self.jacobian = False, None
             return
         still = (abs(found.friction - self.f) <= SHARPEN_TOL * abs(found.friction)
                  and abs(found.kappa - self.kappa) <= SHARPEN_TOL * abs(found.kappa))
         self.f, self.kappa, self.y, self.z = (found.friction, found.kappa, found.right,
                                               found.left)
-        self.row = found.row
+        self.jacobian = found.jacobian
         self.active = not ((rnd and still) or rnd == SHARPEN_ROUNDS)
 
     def residuals(self, pencil: SlidingPencil, vw: np.ndarray, out: np.ndarray) -> None:
@@ -126,7 +126,7 @@ def _sharpen(red: Reduced, pencil: SlidingPencil, factor, guesses: list[Guess]
             run.extend(new, edge)
     vw = _lift(V, m, runs)
     return [Guess(float(run.f), float(run.kappa), vw[:, 2 * i], vw[:, 2 * i + 1], run.branch,
-                  run.row) for i, run in enumerate(runs)]
+                  run.jacobian) for i, run in enumerate(runs)]
 
 
 def _lift(V: np.ndarray, m: int, runs: list[_Run]) -> np.ndarray:

@@ -291,6 +291,38 @@ def test_sharpened_guess_needs_one_newton_step(square, square_pencil):
     assert found.steps == 1 and found.friction == pytest.approx(sharp.friction, rel=1e-9)
 
 
+def test_newton_takes_the_sharpened_models_jacobian_only_where_it_agrees(square_pencil,
+                                                                         monkeypatch):
+    """From a sharpened guess, the first Newton step takes its Jacobian's second row from the
+    sharpened model (no solves for it) and lands where the solved row leads (the row only
+    scales a correction of ~1e-10); a model whose first row is off is not taken."""
+    pencil = square_pencil
+    red = locus.reduce(pencil, 6)
+    guess = locus.locate_flutter(red, locus.follow(red, 6, np.linspace(0, 2.0, 201)))
+    sharp = sharpen(red, pencil, locus.factor_of(pencil, "scipy", None), [guess])[0]
+    assert sharp.jacobian is not None and sharp.jacobian.shape == (2, 2)
+    solved = []
+    original = fold._second_row
+
+    def counted(*args):
+        solved.append(len(args[4]))  # v: the full pencil's, or the small model's
+        return (yield from original(*args))
+
+    monkeypatch.setattr(fold, "_second_row", counted)
+    start = (sharp.friction, sharp.kappa, sharp.right, sharp.left)
+    alone = fold.find_fold(pencil, *start)
+    assert solved == [pencil.size] and alone.steps == 1
+    solved.clear()
+    given = fold.find_fold(pencil, *start, sharp.jacobian)
+    assert solved == [] and given.steps == 1
+    assert given.friction == pytest.approx(alone.friction, rel=1e-12)
+    assert given.kappa == pytest.approx(alone.kappa, rel=1e-10)
+    off = sharp.jacobian.copy()
+    off[0] *= 1.01  # its first row 1 % from the full pencil's: not the same Jacobian
+    fold.find_fold(pencil, *start, off)
+    assert solved == [pencil.size]
+
+
 def test_root_locus_labels_do_not_depend_on_rounding(square_pencil):
     """QZ gives a complex pair as two quotients that are conjugate only to rounding; made
     exactly conjugate (Im > 0 first), which branch takes which half is the matching rule's
