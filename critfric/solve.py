@@ -281,14 +281,24 @@ def _mesh_inputs(case: Case) -> dict:
             for k, v in getattr(case, section).items()}
 
 
-def solve_prepared(prep: Prepared, case: Case, *, _release: bool = False) -> Result:
+def solve_prepared(prep: Prepared, case: Case, *, keep_analysis: bool = False,
+                   _release: bool = False) -> Result:
     """Solve the eigenproblem of a prepared case at the case's Poisson ratio (and [solve],
-    [contact]); its geometry, mesh and boundary must be those ``prep`` was made from."""
-    plan, prep.plan = prep.plan, None  # prepare's analysis of K's pattern, if started
+    [contact]); its geometry, mesh and boundary must be those ``prep`` was made from.
+
+    ``keep_analysis``: where the eigen stage factors K with PARDISO (the dense path), its
+    analysis (METIS and the symbolic factorization, about half of the factorization) is kept
+    in ``prep`` for the next call, which then factors on it: K has one pattern for every
+    Poisson ratio. The factor's memory stays allocated between the calls (a sweep over nu
+    does this; ``prep.plan = None`` frees it)."""
+    plans, prep.plan = [prep.plan], None  # prepare's analysis of K's pattern, if started
     try:
-        return _solve_prepared(prep, case, plan, _release)
+        result = _solve_prepared(prep, case, plans, _release, keep_analysis)
     finally:
-        _close(plan)
+        _close(plans[0])
+    if keep_analysis and plans[0] is not None:
+        prep.plan = plans[0].again()
+    return result
 
 
 def _close(plan) -> None:
@@ -297,7 +307,11 @@ def _close(plan) -> None:
         plan.close()
 
 
-def _solve_prepared(prep: Prepared, case: Case, plan, _release: bool) -> Result:
+def _solve_prepared(prep: Prepared, case: Case, plans: list, _release: bool,
+                    keep: bool) -> Result:
+    """The solve; ``plans[0]``: the analysis of K's pattern it factors on (one started here
+    where ``keep`` asks for one and there is none)."""
+    plan = plans[0]
     prep.check_case(case)
     check_dimension(case, prep.mesh.dim)
     if prep.mesh.dim == 3 and prep.slip != _slip_inputs(case):
@@ -308,7 +322,12 @@ def _solve_prepared(prep: Prepared, case: Case, plan, _release: bool) -> Result:
     s = case.solve
     system = prep.system
     state = contact_state(case, system)  # None: all slipping ([contact])
-    K = system.stiffness(lam, G, keep_zeros=plan is not None)  # the planned pattern
+    K = system.stiffness(lam, G, keep_zeros=plan is not None or keep)  # the planned pattern
+    if plan is None and keep:  # its analysis kept for the next Poisson ratio
+        plan = plans[0] = eigen.plan_for(K, system, method=s["method"], shift=s["shift"],
+                                         backend=s["backend"])
+    if plan is not None:
+        plan.keep = keep
     if _release:  # solve_case's own prepared case: the parts are not needed again, and
         # at 1 M DOFs they are 0.4 GB beside the factorization (the peak)
         system = prep.system = dataclasses.replace(system, K_lam=None, K_G=None,

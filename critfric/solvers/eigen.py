@@ -65,6 +65,7 @@ from .eigenproblem import (
     real_vector,
 )
 from .ordering import fill_order, pieces
+from .pardiso import upper_triangle
 
 __all__ = ["INFINITE_TOL", "LAWS", "RESIDUAL_TOL", "ContactState", "Mode", "Spectrum",
            "plan_dense", "schur_spectrum", "solve", "solve_arpack", "solve_dense", "uses_dense"]
@@ -244,6 +245,21 @@ def plan_dense(indptr: np.ndarray, indices: np.ndarray, contact_dofs: np.ndarray
             or rows > 2 * SCHUR_MAX_CONTACT or rows >= len(indptr) - 1):
         return None
     return PardisoPlan(indptr, indices, contact_dofs)
+
+
+def plan_for(K, system: ContactSystem, *, method="auto", shift=0.0, backend="auto"
+             ) -> PardisoPlan | None:
+    """:func:`plan_dense` of an assembled K (its upper triangle's pattern; zeros kept, so
+    that every Poisson ratio's K has it) and ``system``'s contact DOFs."""
+    try:
+        if resolve_backend(backend) != "pardiso":
+            return None
+    except SolverError:  # solve() reports it
+        return None
+    U = upper_triangle(K)
+    dofs = np.concatenate([system.cn, system.ct] + ([system.ce] if system.dim == 3 else []))
+    return plan_dense(U.indptr, U.indices, dofs, method=method, shift=shift, backend=backend,
+                      dim=system.dim)
 
 
 def _method(method: str, rows: int, shift: float, n_slip: int, dim: int) -> str:

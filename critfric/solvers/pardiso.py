@@ -18,6 +18,7 @@ import importlib.metadata
 import importlib.util
 import weakref
 from collections.abc import Callable
+from concurrent.futures import Future
 from typing import NamedTuple
 
 import numpy as np
@@ -154,6 +155,7 @@ class PardisoFactor:
         n = self.shape[0]
         if values is not None:
             self._a[:] = values
+        self._cho = None  # of the Schur complement of the values before
         if self._index is None:
             self._call(22, 1, np.zeros(n), np.zeros(n))
             return
@@ -242,13 +244,31 @@ class PardisoPlan:
     sequential (~half of a factorization at 1 M rows), so the other cores work meanwhile.
     :meth:`schur` (with Schur rows) or :meth:`factor` (without) finishes it on a matrix of
     that pattern, once; :meth:`close` waits for an analysis that will not be used (its
-    owner's ``finally``: no analysis outlives the call that started it)."""
+    owner's ``finally``: no analysis outlives the call that started it). With ``keep`` set,
+    the plan keeps the factor it finishes, and :meth:`again` makes a plan for another matrix
+    of the same pattern on the analysis done here (that factor, factored again: phase 22
+    alone)."""
 
     def __init__(self, indptr: np.ndarray, indices: np.ndarray, index: np.ndarray | None = None):
         self._factor = PardisoFactor.__new__(PardisoFactor)
         self._factor._setup(indptr, indices, symmetric=True)  # the caller's thread count
         self._index = None if index is None else np.asarray(index, dtype=np.int64)
         self._analysis = MKL_THREAD.submit(self._factor._analyse, self._index)
+        self.keep = False  # keep the factor finished on this plan, for again()
+        self.made: PardisoFactor | None = None
+
+    def again(self) -> PardisoPlan | None:
+        """A plan whose analysis is this one's, for another matrix of the pattern: the factor
+        this plan made (None if none), its values replaced when the plan is finished (the
+        factor's memory stays allocated meanwhile)."""
+        factor, self.made = self.made, None
+        if factor is None:
+            return None
+        plan = PardisoPlan.__new__(PardisoPlan)
+        plan._factor, plan._index, plan.keep, plan.made = factor, factor._index, False, None
+        plan._analysis = Future()
+        plan._analysis.set_result(None)
+        return plan
 
     def schur(self, A: sp.spmatrix, index: np.ndarray) -> PardisoFactor | None:
         """The :class:`PardisoFactor` of A with Schur rows ``index``, or None if A's upper
@@ -280,6 +300,8 @@ class PardisoPlan:
             self._analysis.exception()  # used or not: no analysis outlives its plan's use
         self._analysis.result()  # its error, if any
         factor._numeric(U.data)
+        if self.keep:
+            self.made = factor
         return factor
 
 

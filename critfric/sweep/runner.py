@@ -121,6 +121,9 @@ def _prepared(spec: dict, case: Case, point: Point) -> Prepared:
                 _CACHE.popitem(last=False)
         _CACHE.move_to_end(key)
         prep = _CACHE[key]
+        for other in _CACHE.values():  # one kept factorization a worker (the memory guard's)
+            if other is not prep:
+                other.plan = None
         if point.slip_angle is None or prep.mesh.dim != 3:
             return prep
         key += (point.slip_angle,)
@@ -148,7 +151,7 @@ def run_point(spec: dict, point: Point | MinimumTask) -> dict:
         if point.slip_angle is not None and prep.mesh.dim != 3:
             raise CaseError("applies to 3D bodies; this mesh is 2D", file=case.source,
                             key="--slip-angle")
-        result = solve_prepared(prep, case)
+        result = solve_prepared(prep, case, keep_analysis=spec["reuse"])
     except Exception as exc:
         return empty_row(point, f"failed: {type(exc).__name__}: {exc}",
                          time.perf_counter() - t0)
@@ -174,7 +177,8 @@ def _run_minimum(spec: dict, task: MinimumTask) -> dict:
         prep = _prepared(spec, case, point)
 
         def alpha_at(angle: float) -> tuple[float, float]:
-            result = solve_prepared(prep, case.with_overrides({"solve.slip_angle": angle}))
+            result = solve_prepared(prep, case.with_overrides({"solve.slip_angle": angle}),
+                                    keep_analysis=spec["reuse"])
             if not len(result.positive):
                 return math.inf, math.nan
             return float(result.positive[0]), float(result.r_of(result.positive[:1])[0])

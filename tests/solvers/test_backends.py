@@ -487,6 +487,37 @@ def test_stiffness_pattern_is_known_before_its_values(element):
     assert K.nnz == np.count_nonzero(own.stiffness(*lame(1.0, 0.3), keep_zeros=True).data)
 
 
+@pytest.mark.parametrize("backend", AVAILABLE)
+def test_a_kept_analysis_serves_the_next_poisson_ratios(backend, monkeypatch):
+    """solve_prepared(keep_analysis=True): PARDISO analyses K once for a sweep over nu (K has
+    one pattern for every nu, nu = 0 included) and factors on that analysis, with the values
+    of fresh solves; the Schur complement and its Cholesky are those of the new values. SciPy
+    keeps nothing."""
+    from critfric.solve import solve_prepared
+    from critfric.solvers import pardiso
+
+    case = loads_case(square_case(element="P1", size=0.1)).with_overrides(
+        {"solve.backend": backend})
+    analyses = []
+    if backend == "pardiso":
+        original = pardiso.PardisoFactor._analyse
+        monkeypatch.setattr(pardiso.PardisoFactor, "_analyse",
+                            lambda self, index: analyses.append(1) or original(self, index))
+    kept, fresh = prepare(case), prepare(case)
+    for nu in (0.0, 0.3, 0.45, 0.2):
+        at = case.with_overrides({"material.nu": nu})
+        got = solve_prepared(kept, at, keep_analysis=True)
+        assert (kept.plan is not None) == (backend == "pardiso")
+        want = solve_prepared(fresh, at)
+        assert fresh.plan is None
+        for a, b in ((got.positive, want.positive), (got.negative, want.negative)):
+            np.testing.assert_allclose(a, b, rtol=1e-10)
+        assert len(got.alpha) == len(want.alpha)
+    if backend == "pardiso":
+        assert len(analyses) == 1 + 4  # the kept one, and each fresh solve's own
+    kept.plan = None  # frees the kept factor
+
+
 @pytest.mark.skipif("pardiso" not in AVAILABLE,
                     reason="backend 'pardiso' not installed (pip install critfric[fast])")
 def test_pardiso_analysis_started_from_the_pattern_gives_the_same_factorization():
