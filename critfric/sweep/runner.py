@@ -134,6 +134,14 @@ def _prepared(spec: dict, case: Case, point: Point) -> Prepared:
         return _TURNED[key]
 
 
+def _drop_kept() -> None:
+    """Free the factorizations this process's cached meshes keep between points (a sweep run
+    in this process: its meshes stay cached, their factors do not outlive it)."""
+    with _CACHE_LOCK:
+        for prep in list(_CACHE.values()) + list(_TURNED.values()):
+            prep.plan = None
+
+
 def run_point(spec: dict, point: Point | MinimumTask) -> dict:
     """Solve one point (in a worker), or locate one minimum over directions; a failure is
     returned as a row, never raised."""
@@ -325,6 +333,7 @@ def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = 
     finally:
         if client is not None:
             client.close()
+        _drop_kept()
     minima = sorted(located.values(), key=lambda m: (grid.element.index(m["element"])
                                                      if m["element"] in grid.element else 99,
                                                      -1.0 if m["size"] is None else -m["size"],
