@@ -39,7 +39,8 @@ test: $(STAMP)
 
 # the same suite on a SciPy-only install (no MKL): what a plain `pip install critfric` gets
 NOFAST := .venv-nofast
-$(NOFAST)/.installed: pyproject.toml $(STAMP)
+$(NOFAST)/.installed: pyproject.toml
+	@bash scripts/system-deps.sh
 	@test -x $(NOFAST)/bin/python || $(PYTHON) -m venv $(NOFAST)
 	$(NOFAST)/bin/python -m pip install -q --disable-pip-version-check -e '.[test]'
 	@touch $@
