@@ -51,8 +51,8 @@ class Fold:
     left: np.ndarray
     steps: int
     residual: float  # ||L v|| / (||L|| ||v||) at the solution
-    jacobian: np.ndarray | None = field(default=None, repr=False)  # the last step's, 2 x 2
     solver: Bordered | Deflated | None = field(default=None, repr=False)  # for the next run
+    jacobian: np.ndarray | None = field(default=None, repr=False)  # the last step's, 2 x 2
 
 
 def find_fold(pencil: SlidingPencil, f0: float, kappa0: float, right: np.ndarray,
