@@ -154,8 +154,10 @@ class BlockPattern:
         cells, inverse, ab, ba = self._local
         _, _, diag, upper, lower = self._node
         n_pairs = len(self._lo)
+        on_diagonal = np.bincount(cells.ravel(), weights=diagonal.ravel(),
+                                  minlength=self.n_nodes)
         out = np.empty(self.nnz)
-        out[diag] = np.bincount(cells.ravel(), weights=diagonal.ravel(), minlength=self.n_nodes)
+        out[diag] = on_diagonal
         if down is None:
             out[upper] = out[lower] = np.bincount(inverse.ravel(), weights=up.ravel(),
                                                   minlength=n_pairs)
@@ -164,7 +166,7 @@ class BlockPattern:
         both += np.bincount(ba.ravel(), weights=down.ravel(), minlength=2 * n_pairs)
         out[upper], out[lower] = both[:n_pairs], both[n_pairs:]
         transposed = np.empty(self.nnz)
-        transposed[diag] = out[diag]
+        transposed[diag] = on_diagonal
         transposed[upper], transposed[lower] = both[n_pairs:], both[:n_pairs]
         return out, transposed
 

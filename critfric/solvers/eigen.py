@@ -60,6 +60,7 @@ from .eigenproblem import (
     Spectrum,
     classify,
     complete_pairs,
+    contact_dofs,
     finish,
     ratio,
     real_vector,
@@ -257,9 +258,8 @@ def plan_for(K, system: ContactSystem, *, method="auto", shift=0.0, backend="aut
     except SolverError:  # solve() reports it
         return None
     U = upper_triangle(K)
-    dofs = np.concatenate([system.cn, system.ct] + ([system.ce] if system.dim == 3 else []))
-    return plan_dense(U.indptr, U.indices, dofs, method=method, shift=shift, backend=backend,
-                      dim=system.dim)
+    return plan_dense(U.indptr, U.indices, contact_dofs(system), method=method, shift=shift,
+                      backend=backend, dim=system.dim)
 
 
 def _method(method: str, rows: int, shift: float, n_slip: int, dim: int) -> str:

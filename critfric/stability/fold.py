@@ -83,10 +83,10 @@ def _each(requests: list[tuple]) -> list:
 def find_folds(pencil: SlidingPencil, starts: list[tuple], *, backend: str = "scipy",
                order=None, solver: Bordered | Deflated | None = None) -> list[Fold]:
     """:func:`find_fold` from each start (f0, kappa0, right, left[, model]). With a
-    :class:`Deflated`
-    solver, their Newton steps run in lockstep, every GMRES iteration's solves with K_rr in
-    one call (:func:`.bordered.solve_jointly`); if any of them stalls, one after the other
-    from their starts (the solver passed on, as it falls back on an LU)."""
+    :class:`Deflated` solver, their Newton steps run in lockstep, every GMRES iteration's
+    solves with K_rr in one call (:func:`.bordered.solve_jointly`); if any of them stalls,
+    one after the other from their starts (the solver passed on, as it falls back on an
+    LU)."""
     if isinstance(solver, Deflated) and len(starts) > 1:
         try:
             return _lockstep(pencil, starts, solver, backend, order)

@@ -121,25 +121,24 @@ def _prepared(spec: dict, case: Case, point: Point) -> Prepared:
                 _CACHE.popitem(last=False)
         _CACHE.move_to_end(key)
         prep = _CACHE[key]
-        for other in _CACHE.values():  # one kept factorization a worker (the memory guard's)
-            if other is not prep:
-                other.plan = None
-        if point.slip_angle is None or prep.mesh.dim != 3:
-            return prep
-        key += (point.slip_angle,)
-        if key not in _TURNED:
-            _TURNED[key] = turned(prep, case)
-            while len(_TURNED) > TURNED_SIZE:
-                _TURNED.popitem(last=False)
-        return _TURNED[key]
+        if point.slip_angle is not None and prep.mesh.dim == 3:
+            key += (point.slip_angle,)
+            if key not in _TURNED:
+                _TURNED[key] = turned(prep, case)
+                while len(_TURNED) > TURNED_SIZE:
+                    _TURNED.popitem(last=False)
+            prep = _TURNED[key]
+        _keep_only(prep)
+        return prep
 
 
-def _drop_kept() -> None:
-    """Free the factorizations this process's cached meshes keep between points (a sweep run
-    in this process: its meshes stay cached, their factors do not outlive it)."""
-    with _CACHE_LOCK:
-        for prep in list(_CACHE.values()) + list(_TURNED.values()):
-            prep.plan = None
+def _keep_only(prep: Prepared | None) -> None:
+    """Free the factorizations that this process's cached meshes other than ``prep`` keep
+    between points (solve_prepared's keep_analysis): one a worker, as the memory guard
+    counts; None: every one (a sweep run in this process ends, its meshes stay cached)."""
+    for other in list(_CACHE.values()) + list(_TURNED.values()):
+        if other is not prep:
+            other.plan = None
 
 
 def run_point(spec: dict, point: Point | MinimumTask) -> dict:
@@ -333,7 +332,8 @@ def run_sweep(case: Case, grid: Grid, *, output: Path | str, jobs: int | None = 
     finally:
         if client is not None:
             client.close()
-        _drop_kept()
+        with _CACHE_LOCK:
+            _keep_only(None)
     minima = sorted(located.values(), key=lambda m: (grid.element.index(m["element"])
                                                      if m["element"] in grid.element else 99,
                                                      -1.0 if m["size"] is None else -m["size"],
