@@ -35,7 +35,7 @@ demo: $(STAMP)
 	@$(BIN)/critfric table $(DEMO)/*.h5
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n auto
+	$(BIN)/python -m pytest -q -n auto --dist worksteal
 
 # the same suite on a SciPy-only install (no MKL): what a plain `pip install critfric` gets
 NOFAST := .venv-nofast
@@ -50,7 +50,7 @@ $(NOFAST)/.installed: pyproject.toml
 # the README's commands, the manual and the architecture)
 test-nofast: $(NOFAST)/.installed
 	$(NOFAST)/bin/python -c 'import importlib.util as u; assert u.find_spec("pypardiso") is None'
-	$(NOFAST)/bin/python -m pytest -q -n auto -m "not once"
+	$(NOFAST)/bin/python -m pytest -q -n auto --dist worksteal -m "not once"
 
 # the long validation study (minutes; not part of `make test`): h -> 0 limits of graded sweeps
 # (unit square, inclined body, mixed contact states; P1, P2, Q1, Q2; five sizes) against

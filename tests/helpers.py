@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import glob
 import math
 import os
+import shlex
 import signal
 import subprocess
 import sys
 import time
+import traceback
 from pathlib import Path
 
 import numpy as np
@@ -117,6 +120,37 @@ def run_cli(*args):
     from critfric.cli.app import app
 
     return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def run_line(command: str, work: Path, env: dict) -> tuple[int, str]:
+    """Run one shell line in ``work``: a `critfric` line in this process (typer's CliRunner;
+    a start-up of the command saved per line) with its `> file` redirection and its globs,
+    anything else in bash. Its exit code and its stderr (with a traceback if one escaped)."""
+    if not command.startswith("critfric "):
+        proc = subprocess.run(["bash", "-c", command], cwd=work, env=env, text=True,
+                              capture_output=True, timeout=300, check=False)
+        return proc.returncode, proc.stderr
+    from typer.testing import CliRunner
+
+    from critfric.cli.app import app
+
+    command, _, target = command.partition(" > ")
+    args = []
+    for word in shlex.split(command)[1:]:
+        found = sorted(glob.glob(word, root_dir=work)) if any(c in word for c in "*?[") else []
+        args += found or [word]
+    here = os.getcwd()
+    os.chdir(work)
+    try:
+        result = CliRunner().invoke(app, args)
+    finally:
+        os.chdir(here)
+    if target:
+        (work / target.strip()).write_text(result.stdout)
+    error = result.stderr
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        error += "".join(traceback.format_exception(result.exception))
+    return result.exit_code, error
 
 
 def cli_process(*args, stdout=subprocess.PIPE, **env) -> subprocess.Popen:

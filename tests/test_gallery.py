@@ -10,18 +10,16 @@ CRITFRIC_DOCS_FULL=1; lines that show a refusal must end with their exit code in
 
 from __future__ import annotations
 
-import glob
+import json
 import os
 import re
-import shlex
 import shutil
 import subprocess
 import sys
-import traceback
 from pathlib import Path
 
 import pytest
-from helpers import REPO
+from helpers import REPO, run_line
 
 pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
 
@@ -106,32 +104,6 @@ def _quicker(page: str, text: str) -> str:
     return text
 
 
-def run_line(command: str, work: Path, env: dict) -> tuple[int, str]:
-    """Run one shell line in ``work``: a `critfric` line in this process (typer's CliRunner;
-    a start-up of the command saved per line) with its `> file` redirection and its globs,
-    anything else in bash. Its exit code and its stderr (with a traceback if one escaped)."""
-    if not command.startswith("critfric "):
-        proc = subprocess.run(["bash", "-c", command], cwd=work, env=env, text=True,
-                              capture_output=True, timeout=300, check=False)
-        return proc.returncode, proc.stderr
-    from typer.testing import CliRunner
-
-    from critfric.cli.app import app
-
-    command, _, target = command.partition(" > ")
-    args = []
-    for word in shlex.split(command)[1:]:
-        found = sorted(glob.glob(word)) if any(c in word for c in "*?[") else []
-        args += found or [word]
-    result = CliRunner().invoke(app, args)
-    if target:
-        (work / target.strip()).write_text(result.stdout)
-    error = result.stderr
-    if result.exception is not None and not isinstance(result.exception, SystemExit):
-        error += "".join(traceback.format_exception(result.exception))
-    return result.exit_code, error
-
-
 def run_page(page: Path, work: Path, scheduler: str | None = None) -> None:
     """Run ``page``'s blocks in order in ``work``; fail with the block or line that broke."""
     import matplotlib
@@ -200,24 +172,44 @@ def test_the_pages_run_commands_and_code_and_link_to_pages_that_exist():
 
 # ------------------------------------------------------------------------------ the gallery
 RUNNER = """
-import runpy, sys
+import json, os, runpy, sys, traceback
 import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-runpy.run_path(sys.argv[1], run_name="__main__")
-assert plt.get_fignums(), "the script drew no figure that sphinx-gallery would keep"
+report = {}
+for script, work in zip(sys.argv[1::2], sys.argv[2::2]):
+    os.chdir(work)
+    try:
+        runpy.run_path(script, run_name="__main__")
+        report[script] = "" if plt.get_fignums() else \\
+            "the script drew no figure that sphinx-gallery would keep"
+    except BaseException:
+        report[script] = traceback.format_exc()
+    plt.close("all")
+print(json.dumps(report))
 """
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("script", SCRIPTS, ids=[s.stem for s in SCRIPTS])
-def test_every_gallery_script_runs_and_draws(script, tmp_path):
+def test_every_gallery_script_runs_and_draws(tmp_path):
+    """One child process runs the scripts one after another, as sphinx-gallery does, each in
+    its own empty working directory, which must stay empty."""
     env = {**os.environ, "PYTHONPATH": str(REPO), "MPLBACKEND": "Agg"}
-    proc = subprocess.run([sys.executable, "-c", RUNNER, str(script)], cwd=tmp_path, env=env,
-                          text=True, capture_output=True, timeout=300, check=False)
+    works = [tmp_path / script.stem for script in SCRIPTS]
+    args = []
+    for script, work in zip(SCRIPTS, works):
+        work.mkdir()
+        args += [str(script), str(work)]
+    proc = subprocess.run([sys.executable, "-c", RUNNER, *args], cwd=tmp_path, env=env,
+                          text=True, capture_output=True, timeout=600, check=False)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert not list(tmp_path.iterdir()), "a gallery script must write into a temporary " \
-        f"directory only, not its working directory: {list(tmp_path.iterdir())}"
+    report = json.loads(proc.stdout.splitlines()[-1])
+    failed = {Path(s).name: error[-3000:] for s, error in report.items() if error}
+    assert not failed, failed
+    assert sorted(report) == sorted(map(str, SCRIPTS))
+    for work in works:
+        assert not list(work.iterdir()), "a gallery script must write into a temporary " \
+            f"directory only, not its working directory: {list(work.iterdir())}"
 
 
 def test_the_gallery_has_a_header_and_scripts_in_sphinx_gallery_form():
