@@ -113,13 +113,20 @@ def case_pencil(case, state=None):
                           state or ContactState.all_slipping(prep.system.n_contact))
 
 
-def run_cli(*args):
-    """``critfric ARGS`` in this process (typer's CliRunner); every argument str()-ed."""
+def run_cli(*args, cwd: Path | None = None):
+    """``critfric ARGS`` in this process (typer's CliRunner); every argument str()-ed; in the
+    working directory ``cwd`` if given (the former one restored after)."""
     from typer.testing import CliRunner
 
     from critfric.cli.app import app
 
-    return CliRunner().invoke(app, [str(a) for a in args])
+    here = os.getcwd()
+    if cwd is not None:
+        os.chdir(cwd)
+    try:
+        return CliRunner().invoke(app, [str(a) for a in args])
+    finally:
+        os.chdir(here)
 
 
 def run_line(command: str, work: Path, env: dict) -> tuple[int, str]:
@@ -130,21 +137,12 @@ def run_line(command: str, work: Path, env: dict) -> tuple[int, str]:
         proc = subprocess.run(["bash", "-c", command], cwd=work, env=env, text=True,
                               capture_output=True, timeout=300, check=False)
         return proc.returncode, proc.stderr
-    from typer.testing import CliRunner
-
-    from critfric.cli.app import app
-
     command, _, target = command.partition(" > ")
     args = []
     for word in shlex.split(command)[1:]:
         found = sorted(glob.glob(word, root_dir=work)) if any(c in word for c in "*?[") else []
         args += found or [word]
-    here = os.getcwd()
-    os.chdir(work)
-    try:
-        result = CliRunner().invoke(app, args)
-    finally:
-        os.chdir(here)
+    result = run_cli(*args, cwd=work)
     if target:
         (work / target.strip()).write_text(result.stdout)
     error = result.stderr

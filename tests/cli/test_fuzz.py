@@ -14,12 +14,11 @@ import string
 
 import pytest
 import tomli_w
+from helpers import run_cli
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
-from typer.testing import CliRunner
 
 from critfric.case.schema import SCHEMA, from_dict, loads_case
-from critfric.cli.app import app
 from critfric.errors import CritfricError
 
 pytestmark = pytest.mark.once  # the same on both installs: run by `make test` only
@@ -205,12 +204,7 @@ def command_lines(draw):
 def test_command_line_exits_cleanly(workdir, command):
     text, args = command
     (workdir / "case.toml").write_text(text)
-    cwd = os.getcwd()
-    os.chdir(workdir)
-    try:
-        res = CliRunner().invoke(app, args)
-    finally:
-        os.chdir(cwd)
+    res = run_cli(*args, cwd=workdir)
     assert res.exception is None or isinstance(res.exception, SystemExit), (args, text)
     assert res.exit_code in (0, 1, 2), (res.exit_code, args, res.output)
     event(f"exit {res.exit_code}")
