@@ -2,14 +2,37 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
 import pytest
+from threadpoolctl import threadpool_limits
+
+from critfric.guards import usable_cpus
+from critfric.sweep.workers import THREAD_VARS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/<stage>/ import helpers
 
 from helpers import square_case
+
+
+def _share_the_cores() -> None:
+    """Under ``pytest -n N`` each worker runs its BLAS and OpenMP libraries (OpenBLAS, MKL's
+    PARDISO, gmsh) on its share of the cores, as a sweep's worker processes do: with each
+    library's default count the workers' thread teams contend for the same cores (the suite
+    takes 10-15 % longer on 2 cores). Variables the caller set are kept. The tests of thread
+    counts raise them where they need more (threadpoolctl)."""
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    if "PYTEST_XDIST_WORKER" not in os.environ or workers < 2:
+        return
+    share = max(1, usable_cpus() // workers)
+    for name in THREAD_VARS:
+        os.environ.setdefault(name, str(share))  # MKL reads it when PARDISO first loads it
+    threadpool_limits(int(os.environ["OPENBLAS_NUM_THREADS"]), user_api="blas")  # loaded
+
+
+_share_the_cores()
 
 
 def pytest_collection_modifyitems(items):

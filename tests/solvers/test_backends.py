@@ -601,20 +601,24 @@ def test_pardiso_phases_keep_one_thread_count_whatever_the_caller_sets():
     from critfric.solve import solve_case
 
     case = loads_case(square_case(element="P1", size=0.025))
-    ref = solve_case(case)
-    with threadpool_limits(limits=1):
-        limited = solve_case(case)
-        K = prepare(case).system.stiffness(*lame(1.0, 0.3))
-        index = np.arange(0, K.shape[0], 7)
-        factor = linsolve.PardisoFactor(K, symmetric=True, schur_index=index)
-    np.testing.assert_allclose(limited.positive, ref.positive, rtol=1e-11)
-    np.testing.assert_allclose(limited.negative, ref.negative, rtol=1e-11)
-    whole = linsolve.PardisoFactor(K, symmetric=True, schur_index=index)
-    np.testing.assert_allclose(factor.S, whole.S, rtol=0, atol=1e-12 * np.abs(whole.S).max())
-    xc = np.random.default_rng(2).standard_normal((len(index), 3))
-    with threadpool_limits(limits=1):  # made with the default count, solved with one
-        np.testing.assert_allclose(whole.extend(xc), factor.extend(xc), rtol=0,
-                                   atol=1e-11 * np.abs(factor.extend(xc)).max())
+    lib = linsolve.pardiso_library()  # loaded, so that threadpoolctl sees MKL
+    with threadpool_limits(limits=2):  # a default count above one, even in a test worker
+        assert lib.max_threads() == 2
+        ref = solve_case(case)
+        with threadpool_limits(limits=1):
+            assert lib.max_threads() == 1
+            limited = solve_case(case)
+            K = prepare(case).system.stiffness(*lame(1.0, 0.3))
+            index = np.arange(0, K.shape[0], 7)
+            factor = linsolve.PardisoFactor(K, symmetric=True, schur_index=index)
+        np.testing.assert_allclose(limited.positive, ref.positive, rtol=1e-11)
+        np.testing.assert_allclose(limited.negative, ref.negative, rtol=1e-11)
+        whole = linsolve.PardisoFactor(K, symmetric=True, schur_index=index)
+        np.testing.assert_allclose(factor.S, whole.S, rtol=0, atol=1e-12 * np.abs(whole.S).max())
+        xc = np.random.default_rng(2).standard_normal((len(index), 3))
+        with threadpool_limits(limits=1):  # made with two threads, solved with one
+            np.testing.assert_allclose(whole.extend(xc), factor.extend(xc), rtol=0,
+                                       atol=1e-11 * np.abs(factor.extend(xc)).max())
 
 
 def test_substructuring_stops_at_a_failed_piece(monkeypatch):
