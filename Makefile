@@ -6,6 +6,9 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 DEMO   := demo
+# pip compiles every module it installs (~20 s of CPU, pandas and dask included); where Python
+# may write its bytecode caches, each module is compiled on its first import instead
+PIP    := -m pip install -q --disable-pip-version-check $(if $(PYTHONDONTWRITEBYTECODE),,--no-compile)
 
 .PHONY: all venv demo test test-nofast validate docs fuzz shell clean
 
@@ -19,8 +22,8 @@ $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV) 2>/dev/null || { rm -rf $(VENV); \
 	  echo "critfric set-up: '$(PYTHON) -m venv' does not work here; install the venv module" \
 	       "(Debian/Ubuntu: sudo apt-get install python3-venv) and run make again" >&2; exit 1; }
-	$(BIN)/python -m pip install -q --disable-pip-version-check -e '.[test,fast]' \
-	  || $(BIN)/python -m pip install -q --disable-pip-version-check -e '.[test]'
+	$(BIN)/python $(PIP) -e '.[test,fast]' \
+	  || $(BIN)/python $(PIP) -e '.[test]'
 	@touch $(STAMP)
 
 venv: $(STAMP)
@@ -42,7 +45,7 @@ NOFAST := .venv-nofast
 $(NOFAST)/.installed: pyproject.toml
 	@bash scripts/system-deps.sh
 	@test -x $(NOFAST)/bin/python || $(PYTHON) -m venv $(NOFAST)
-	$(NOFAST)/bin/python -m pip install -q --disable-pip-version-check -e '.[test]'
+	$(NOFAST)/bin/python $(PIP) -e '.[test]'
 	@touch $@
 
 # (the tests marked `once` run in `make test` only: what the sparse solver does not decide, such as
@@ -62,7 +65,7 @@ validate: $(STAMP)
 # from the schema and the CLI) into docs/_build/html, offline; any warning fails the build
 DOCS_STAMP := $(VENV)/.docs-installed
 $(DOCS_STAMP): pyproject.toml $(STAMP)
-	$(BIN)/python -m pip install -q --disable-pip-version-check -e '.[docs]'
+	$(BIN)/python $(PIP) -e '.[docs]'
 	@touch $@
 
 docs: $(DOCS_STAMP)
