@@ -29,7 +29,8 @@ def _share_the_cores() -> None:
     share = max(1, usable_cpus() // workers)
     for name in THREAD_VARS:
         os.environ.setdefault(name, str(share))  # MKL reads it when PARDISO first loads it
-    threadpool_limits(int(os.environ["OPENBLAS_NUM_THREADS"]), user_api="blas")  # loaded
+    blas = os.environ["OPENBLAS_NUM_THREADS"]
+    threadpool_limits(int(blas) if blas.isdigit() else share, user_api="blas")  # loaded
 
 
 _share_the_cores()
