@@ -603,7 +603,9 @@ def test_pardiso_phases_keep_one_thread_count_whatever_the_caller_sets():
     case = loads_case(square_case(element="P1", size=0.025))
     lib = linsolve.pardiso_library()  # loaded, so that threadpoolctl sees MKL
     with threadpool_limits(limits=2):  # a default count above one, even in a test worker
-        assert lib.max_threads() == 2
+        if lib.max_threads() != 2:
+            pytest.skip(f"MKL takes {lib.max_threads()} thread(s) here, not 2: the counts "
+                        "this test compares cannot differ")
         ref = solve_case(case)
         with threadpool_limits(limits=1):
             assert lib.max_threads() == 1
