@@ -9,6 +9,8 @@ DEMO   := demo
 # pip compiles every module it installs (~20 s of CPU, pandas and dask included); where Python
 # may write its bytecode caches, each module is compiled on its first import instead
 PIP    := -m pip install -q --disable-pip-version-check $(if $(PYTHONDONTWRITEBYTECODE),,--no-compile)
+# both installs' suites: every core a worker, the long tests handed out as workers free up
+PYTEST := -m pytest -q -n auto --dist worksteal
 
 .PHONY: all venv demo test test-nofast validate docs fuzz shell clean
 
@@ -38,7 +40,7 @@ demo: $(STAMP)
 	@$(BIN)/critfric table $(DEMO)/*.h5
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n auto --dist worksteal
+	$(BIN)/python $(PYTEST)
 
 # the same suite on a SciPy-only install (no MKL): what a plain `pip install critfric` gets
 NOFAST := .venv-nofast
@@ -53,7 +55,7 @@ $(NOFAST)/.installed: pyproject.toml
 # the README's commands, the manual and the architecture)
 test-nofast: $(NOFAST)/.installed
 	$(NOFAST)/bin/python -c 'import importlib.util as u; assert u.find_spec("pypardiso") is None'
-	$(NOFAST)/bin/python -m pytest -q -n auto --dist worksteal -m "not once"
+	$(NOFAST)/bin/python $(PYTEST) -m "not once"
 
 # the long validation study (minutes; not part of `make test`): h -> 0 limits of graded sweeps
 # (unit square, inclined body, mixed contact states; P1, P2, Q1, Q2; five sizes) against

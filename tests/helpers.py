@@ -129,11 +129,12 @@ def run_cli(*args, cwd: Path | None = None):
         os.chdir(here)
 
 
-def run_line(command: str, work: Path, env: dict) -> tuple[int, str]:
+def run_line(command: str, work: Path, env: dict, *, shell: bool = False) -> tuple[int, str]:
     """Run one shell line in ``work``: a `critfric` line in this process (typer's CliRunner;
     a start-up of the command saved per line) with its `> file` redirection and its globs,
-    anything else in bash. Its exit code and its stderr (with a traceback if one escaped)."""
-    if not command.startswith("critfric "):
+    anything else (every line with ``shell``: as pasted) in bash. Its exit code and its
+    stderr (with a traceback if one escaped)."""
+    if shell or not command.startswith("critfric "):
         proc = subprocess.run(["bash", "-c", command], cwd=work, env=env, text=True,
                               capture_output=True, timeout=300, check=False)
         return proc.returncode, proc.stderr

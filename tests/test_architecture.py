@@ -65,14 +65,16 @@ def _stage(module: str) -> str:
 
 
 def test_nothing_inside_imports_the_package_root():
-    offenders = sorted(n for n, deps in import_graph().items() if n != "critfric" and "critfric" in deps)
+    offenders = sorted(n for n, deps in import_graph().items()
+                       if n != "critfric" and "critfric" in deps)
     assert offenders == []
 
 
 @pytest.mark.parametrize("name", sorted(n for n in MODULES if n != "critfric"))
 def test_imports_run_downwards(name):
     here = LAYERS.index(_stage(name))
-    upward = sorted(d for d in import_graph()[name] if d != "critfric" and LAYERS.index(_stage(d)) > here)
+    upward = sorted(d for d in import_graph()[name]
+                    if d != "critfric" and LAYERS.index(_stage(d)) > here)
     assert upward == [], f"{name} imports a later stage"
 
 
