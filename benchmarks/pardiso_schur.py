@@ -30,31 +30,37 @@ during the variant (VmHWM after resetting it through /proc/self/clear_refs once 
 loaded), and base = its RSS before; dS = max|S - S_b| / max|S_b|; res = max over columns of
 |K x|_inf on the non-c rows / (|K|_inf |x|_inf); dx = max|x - x_b| / max|x_b|.
 
-Results (MKL 2026.2.0 from the pypardiso wheel, 2 cores, 23 GB; minimum of 3 runs):
+Results (MKL 2026.2.0 from the pypardiso wheel, 2 cores, 23 GB; the two-level factorization
+unless said otherwise), on 2026-11-27:
 
-h = 0.0028, n = 323296, 2p = 738 (one run):
-
-| variant | factor s (11 + 22) | S s | total s | / (a) | extend s | peak GB (base) | nnz(L) M |
-|---|---|---|---|---|---|---|---|
-| a | 1.89 (1.11 + 0.78) | 0.00 | 1.89 | 1.00 | - | 0.53 (0.17) | 30.4 |
-| b | 2.17 (1.30 + 0.87) | 0.01 | 2.18 | 1.15 | 0.08 | 0.59 (0.17) | 32.4 |
-| d | 2.01 (1.22 + 0.79) | 0.01 | 2.02 | 1.07 | 0.07 | 0.59 (0.17) | 32.4 |
-| c | 2.30 (1.31 + 0.99) | 0.48 | 2.78 | 1.47 | 0.16 | 0.88 (0.17) | 32.4 |
-| c2 | 1.81 (1.09 + 0.72) | 8.82 | 10.62 | 5.62 | 0.20 | 0.84 (0.17) | 30.4 |
-| cfull | 1.71 (1.01 + 0.71) | 8.05 | 9.76 | 5.16 | 0.20 | 0.84 (0.17) | 30.4 |
-
-h = 0.0014, n = 1291712, 2p = 1474 (minimum of 2; single runs of (a) varied 9.5-13.3 s):
+h = 0.0028, n = 323296, 2p = 738 (minimum of 3):
 
 | variant | factor s (11 + 22) | S s | total s | / (a) | extend s | peak GB (base) | nnz(L) M |
 |---|---|---|---|---|---|---|---|
-| a | 9.54 (5.00 + 4.54) | 0.00 | 9.54 | 1.00 | - | 2.00 (0.39) | 143.7 |
-| b | 10.48 (5.27 + 5.21) | 0.06 | 10.54 | 1.10 | 0.44 | 2.24 (0.39) | 151.9 |
-| d | 11.34 (5.51 + 5.83) | 0.09 | 11.43 | 1.20 | 0.57 | 2.24 (0.39) | 151.9 |
+| a | 1.27 (0.73 + 0.53) | 0.00 | 1.27 | 1.00 | - | 0.52 (0.17) | 30.6 |
+| b | 1.30 (0.74 + 0.56) | 0.01 | 1.31 | 1.03 | 0.06 | 0.56 (0.17) | 32.6 |
+| d | 1.24 (0.74 + 0.50) | 0.01 | 1.25 | 0.98 | 0.06 | 0.56 (0.17) | 32.6 |
+| c | 1.32 (0.74 + 0.58) | 0.94 | 2.26 | 1.78 | 0.12 | 1.15 (0.17) | 32.6 |
+| cfull | 1.18 (0.71 + 0.46) | 5.84 | 7.02 | 5.54 | 0.15 | 1.14 (0.17) | 30.6 |
 
-Every S and extension agrees to 2e-14 (dS, dx) with residuals below 1e-14. What critfric
-does (b) costs ~10-15% over a plain factorization; partial solves (c) cost more, full solves
-5x. Half of PARDISO's time is the analysis (METIS): BENCH_IPARM1=3 (parallel METIS) gave
-4.2 s instead of 5.0 for (a) and nothing for (b), within the run-to-run spread.
+c2 fails with the two-level factorization (its partial solves give a (K^-1)_cc that is not
+positive definite); with the classic one (BENCH_IPARM23=0, one run) c took 2.06 s in all
+(S 0.43 s) and c2 6.81 s, against 1.36 s for (a).
+
+h = 0.0014, n = 1291712, 2p = 1474 (minimum of 2):
+
+| variant | factor s (11 + 22) | S s | total s | / (a) | extend s | peak GB (base) | nnz(L) M |
+|---|---|---|---|---|---|---|---|
+| a | 6.96 (3.80 + 3.17) | 0.00 | 6.96 | 1.00 | - | 1.96 (0.39) | 144.5 |
+| b | 7.26 (3.66 + 3.60) | 0.03 | 7.29 | 1.05 | 0.24 | 2.15 (0.39) | 153.1 |
+| d | 7.24 (3.48 + 3.76) | 0.03 | 7.28 | 1.05 | 0.28 | 2.15 (0.39) | 153.1 |
+
+with BENCH_IPARM1=3 (METIS's parallel version; the same factor): (a) 5.93 s (2.67 + 3.25),
+(b) 6.21 s (2.81 + 3.38), 1.05.
+
+Every S and extension agrees to 3e-14 (dS, dx) with residuals below 1e-14. What critfric
+does (b) costs 3-5 % over a plain factorization; partial solves (c) cost more, full solves
+5x.
 """
 
 from __future__ import annotations
@@ -106,8 +112,9 @@ def load(path: Path):
 # ------------------------------------------------------------------------------ PARDISO
 class Pardiso:
     """Bare MKL PARDISO, critfric's calling convention (PardisoFactor): mtype 2, the upper
-    triangle in zero-based CSR, iparm[0] = 1, METIS (iparm[1] = 2), no iterative refinement
-    (iparm[7] = 0), zero-based indices (iparm[34] = 1)."""
+    triangle in zero-based CSR, iparm[0] = 1, METIS (iparm[1] = 2; BENCH_IPARM1=3: its parallel
+    version), no iterative refinement (iparm[7] = 0), the two-level factorization (iparm[23] =
+    1; BENCH_IPARM23=0: the classic one), zero-based indices (iparm[34] = 1)."""
 
     def __init__(self, K):
         import scipy.sparse as sp
@@ -127,6 +134,7 @@ class Pardiso:
         self.iparm[0] = 1
         self.iparm[1] = int(os.environ.get("BENCH_IPARM1", "2"))
         self.iparm[7] = 0
+        self.iparm[23] = int(os.environ.get("BENCH_IPARM23", "1"))
         self.iparm[34] = 1
         self.perm = np.zeros(n, dtype=np.int32)
 

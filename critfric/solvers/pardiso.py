@@ -1,5 +1,5 @@
 """MKL PARDISO through ctypes (the ``pypardiso`` wheel's library, ``pip install
-critfric[fast]``): METIS ordering, Cholesky-class (mtype 2) or general (mtype 11)
+critfric[fast]``): METIS ordering, Cholesky-class (mtype 2, two-level) or general (mtype 11)
 factorization, the Schur complement computed during the factorization itself (iparm[35] = 2),
 solves without PARDISO's default iterative refinement; and :class:`PardisoPlan`, the analysis
 started from the pattern alone while the values are still being computed.
@@ -108,9 +108,10 @@ class PardisoFactor:
         self._analyse(schur_index)
         self._numeric()
 
-    def _setup(self, indptr, indices, *, symmetric: bool) -> None:
+    def _setup(self, indptr, indices, *, symmetric: bool, beside: bool = False) -> None:
         """The pattern (sorted CSR; the upper triangle if ``symmetric``) and PARDISO's state,
-        every phase to run with this thread's MKL thread count."""
+        every phase to run with this thread's MKL thread count; ``beside``: the analysis will
+        run beside the caller's own work (:class:`PardisoPlan`)."""
         lib = pardiso_library()
         self._lib, n = lib, len(indptr) - 1
         # every phase runs with the thread count of the thread that made the factor: phase 22
@@ -130,13 +131,21 @@ class PardisoFactor:
         MKL_THREAD.call(lib.init, self._pt.ctypes.data, _int(self.mtype),
                         self._iparm.ctypes.data_as(_I32))
         self._iparm[0] = 1   # iparm given
-        self._iparm[1] = 2   # METIS nested dissection
+        # symmetric: the two-level factorization, and METIS's parallel version where no other
+        # work of ours runs beside the analysis (the same ordering and factor, bit for bit).
+        # 1.29 M DOFs, 2 threads, analysis + factorization: plain 2.5-2.9 + 2.8-3.5 s with
+        # both, 3.2-3.8 + 2.8-3.6 s two-level alone, 3.4-4.1 + 3.3-3.4 s neither; with 1474
+        # Schur rows 2.6-2.9 + 3.5-4.5 s, 3.4-3.7 + 3.3-4.3, 3.8-4.9 + 3.5-5.6 (S equal to 5e-15);
+        # the parallel version beside the assembly slowed the solve by 0.6 s
+        self._iparm[1] = 3 if symmetric and not beside else 2  # METIS nested dissection
         self._iparm[7] = 0   # no iterative refinement beyond what perturbed pivots ask for
+        self._iparm[23] = 1 if symmetric else 0
         self._iparm[34] = 1  # zero-based indices
         self._perm = np.zeros(n, dtype=np.int32)
         self._index = None
         self._cho = None  # Cholesky of the Schur complement, for full solves
-        weakref.finalize(self, _pardiso_release, lib, self._pt, self.mtype, n, self._threads)
+        weakref.finalize(self, _pardiso_release, lib, self._pt, self.mtype, n, self._threads,
+                         self._iparm)
 
     def _analyse(self, schur_index) -> None:
         """Phase 11 (ordering, symbolic factorization; for mtype 2 from the pattern alone, for
@@ -240,8 +249,8 @@ class PardisoFactor:
 class PardisoPlan:
     """PARDISO's analysis (phase 11) of a symmetric positive definite matrix, with Schur rows
     ``index`` if given, from its upper-triangle pattern alone (sorted CSR ``indptr``,
-    ``indices``), run in :data:`MKL_THREAD` while the caller computes the values: METIS is
-    sequential (~half of a factorization at 1 M rows), so the other cores work meanwhile.
+    ``indices``), run in :data:`MKL_THREAD` while the caller computes the values: with METIS's
+    sequential version (~half of a factorization at 1 M rows) the other cores work meanwhile.
     :meth:`schur` (with Schur rows) or :meth:`factor` (without) finishes it on a matrix of
     that pattern, once; :meth:`close` waits for an analysis that will not be used (its
     owner's ``finally``: no analysis outlives the call that started it). With ``keep`` set,
@@ -251,7 +260,7 @@ class PardisoPlan:
 
     def __init__(self, indptr: np.ndarray, indices: np.ndarray, index: np.ndarray | None = None):
         self._factor = PardisoFactor.__new__(PardisoFactor)
-        self._factor._setup(indptr, indices, symmetric=True)  # the caller's thread count
+        self._factor._setup(indptr, indices, symmetric=True, beside=True)  # caller's threads
         self._index = None if index is None else np.asarray(index, dtype=np.int64)
         self._analysis = MKL_THREAD.submit(self._factor._analyse, self._index)
         self.keep = False  # keep the factor finished on this plan, for again()
@@ -371,13 +380,14 @@ def _phase(lib: Library, threads: int, pt, mtype: int, phase: int, a, ia, ja, pe
     return err.value
 
 
-def _pardiso_release(lib: Library, pt, mtype, n, threads) -> None:
-    """Phase -1 on ``pt`` (with arrays of the sizes PARDISO's interface declares), posted to
-    :data:`MKL_THREAD`: the finalizer returns at once (freeing a factor of 1.5 GB took 0.16
-    s, 1.29 M DOFs), and the next MKL call comes after it."""
+def _pardiso_release(lib: Library, pt, mtype, n, threads, iparm) -> None:
+    """Phase -1 on ``pt`` with the handle's own ``iparm`` (a two-level factor released with
+    iparm[23] = 0 segfaulted) and arrays of the sizes PARDISO's interface declares, posted
+    to :data:`MKL_THREAD`: the finalizer returns at once (freeing a factor of 1.5 GB took
+    0.16 s, 1.29 M DOFs), and the next MKL call comes after it."""
     zero, index = np.zeros(n), np.zeros(n + 1, dtype=np.int32)
     MKL_THREAD.post(_phase, lib, threads, pt, mtype, -1, zero, index, index, index, 1,
-                    np.zeros(64, dtype=np.int32), zero, zero)
+                    iparm, zero, zero)
 
 
 @contextlib.contextmanager
