@@ -337,6 +337,38 @@ def test_every_pardiso_call_runs_in_one_thread(monkeypatch):
 
 @pytest.mark.skipif("pardiso" not in linsolve.available_backends(),
                     reason="backend 'pardiso' not installed (pip install critfric[fast])")
+def test_a_pardiso_factor_is_released_with_its_own_settings(monkeypatch):
+    """Symmetric factors are two-level (iparm[23] = 1); one released with iparm[23] = 0
+    segfaulted, from 50 rows on. Each handle's release gets the settings of its analysis."""
+    import gc
+
+    from critfric.solvers import pardiso
+
+    seen = []
+    original = pardiso._phase
+    monkeypatch.setattr(pardiso, "_phase", lambda lib, threads, pt, mtype, phase, a, ia, ja,
+                        perm, nrhs, iparm, *rest: (
+        seen.append((pt.ctypes.data, phase, iparm[1], iparm[23], iparm[35]))
+        or original(lib, threads, pt, mtype, phase, a, ia, ja, perm, nrhs, iparm, *rest)))
+    n = 60
+    e = np.ones(n)
+    A = sp.diags([-e[:-1], 2.5 * e, -e[:-1]], [-1, 0, 1], format="csr")
+    made = [linsolve.factorize(A, symmetric=True, backend="pardiso"),
+            linsolve.schur(A, np.array([0, n - 1]), backend="pardiso"),
+            linsolve.factorize(A, symmetric=False, backend="pardiso")]
+    for f in made:
+        assert np.abs(A @ f.solve(np.ones(n)) - 1.0).max() < 1e-12
+    del made, f
+    gc.collect()
+    pardiso.MKL_THREAD.call(int)  # the releases are posted: done once the calls before are
+    analysed = {pt: rest for pt, phase, *rest in seen if phase == 11}
+    released = {pt: rest for pt, phase, *rest in seen if phase == -1}
+    assert len(analysed) == 3 and released == analysed
+    assert sorted(rest[1] for rest in analysed.values()) == [0, 1, 1]  # mtype 11: classic
+
+
+@pytest.mark.skipif("pardiso" not in linsolve.available_backends(),
+                    reason="backend 'pardiso' not installed (pip install critfric[fast])")
 def test_a_released_factor_does_not_wait_for_the_mkl_thread(monkeypatch):
     """Dropping a factor posts its release (phase -1) to the MKL thread and returns at once,
     even while that thread is busy; the next call runs after the release, and at exit the
