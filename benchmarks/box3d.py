@@ -10,7 +10,7 @@ mesh size h. For each run ``element:h:backend``, side by side: ``critfric solve`
 process (wall time from process start to exit, its peak RSS from wait4, its stage times from
 the result file; rest = start-up, modes, HDF5 write, exit), and, in another fresh process,
 one factorization of the same K (all free DOFs, nu = 0.3) with the same backend: PARDISO
-(METIS analysis + numeric phase) or SuperLU with critfric's nested-dissection order (the
+(METIS analysis, its parallel version, + two-level numeric phase) or SuperLU with critfric's nested-dissection order (the
 order's computation included). ratio = solve wall / factorization. Each child is capped at
 MEM_LIMIT_GB of address space.
 

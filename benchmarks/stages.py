@@ -10,8 +10,9 @@ the ratios): ``critfric solve unit-square --size S --json --backend B`` in a fre
 its wall time from process start to exit and its peak RSS (wait4), the stage times it writes
 in its result file (mesh, assembly, contact, eigen; rest = start-up, mesh diameter, modes,
 the HDF5 write, exit), and, in another fresh process, one factorization of the same K with
-the same backend and ordering (``benchmarks/scale.py --child factor``: PARDISO with METIS,
-or SuperLU with critfric's nested-dissection order). ratio = solve wall / factorization.
+the same backend and ordering (``benchmarks/scale.py --child factor``: PARDISO with METIS's
+parallel version and the two-level factorization, critfric's fastest plain one, or SuperLU
+with critfric's nested-dissection order). ratio = solve wall / factorization.
 With ``--rounds N`` each row is measured N times (the factorization first in even rounds) and
 the median ratio follows: a shared machine's load moves a single ratio by 5-10 %.
 """
