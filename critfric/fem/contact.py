@@ -78,6 +78,12 @@ class ContactSystem:
         return len(self.free)
 
     @property
+    def contact_dofs(self) -> np.ndarray:
+        """The contact DOFs in the order of the Schur complement onto them: cn, ct (3D: then
+        ce)."""
+        return np.concatenate([self.cn, self.ct] + ([self.ce] if self.ce is not None else []))
+
+    @property
     def n_contact(self) -> int:
         return len(self.nodes)
 

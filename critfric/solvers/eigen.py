@@ -60,7 +60,6 @@ from .eigenproblem import (
     Spectrum,
     classify,
     complete_pairs,
-    contact_dofs,
     finish,
     ratio,
     real_vector,
@@ -258,7 +257,7 @@ def plan_for(K, system: ContactSystem, *, method="auto", shift=0.0, backend="aut
     except SolverError:  # solve() reports it
         return None
     U = upper_triangle(K)
-    return plan_dense(U.indptr, U.indices, contact_dofs(system), method=method, shift=shift,
+    return plan_dense(U.indptr, U.indices, system.contact_dofs, method=method, shift=shift,
                       backend=backend, dim=system.dim)
 
 

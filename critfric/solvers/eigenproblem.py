@@ -102,13 +102,6 @@ class Spectrum:
         return len(self.alpha) - len(self.positive) - len(self.negative)
 
 
-def contact_dofs(system: ContactSystem) -> np.ndarray:
-    """A contact system's contact DOFs: cn, ct (3D: then ce), the order of the Schur
-    complement."""
-    return np.concatenate([system.cn, system.ct] + ([system.ce] if system.ce is not None
-                                                    else []))
-
-
 def classify(beta: np.ndarray, real_tol: float):
     """Finite eigenvalues alpha = 1/beta, sorted by modulus; real mask; their indices in
     beta; infinite count."""
@@ -160,7 +153,7 @@ class Problem:
     @property
     def contact_dofs(self) -> np.ndarray:
         """The contact DOFs: cn, ct (3D: then ce), the order of the Schur complement."""
-        return contact_dofs(self.system)
+        return self.system.contact_dofs
 
     def mode(self, alpha: float, phi: np.ndarray) -> Mode:
         """Normalize Phi, recover the contact forces and check the residual."""
