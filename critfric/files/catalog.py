@@ -13,6 +13,7 @@ from .pathfile import read_path_summary
 from .results import read_summary
 from .stabilityfile import read_stability_summary
 from .sweepfile import read_sweep
+from .validate import kind_of
 
 
 def summaries(paths) -> tuple[list[dict], list[tuple[Path, str]]]:
@@ -27,7 +28,7 @@ def summaries(paths) -> tuple[list[dict], list[tuple[Path, str]]]:
     for path in map(Path, paths):
         try:
             with h5py.File(path, "r") as f:
-                kind = f.attrs.get("kind")
+                kind = kind_of(f)
         except (OSError, ValueError) as exc:
             reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else "not HDF5"
             skipped.append((path, f"cannot read this file ({reason})"))

@@ -201,7 +201,7 @@ def _describe(name: str, obj, dim: int = 2) -> None:
 def file_attrs(f: h5py.File, kind: str, path: Path) -> dict:
     """The root attributes of a critfric file of ``kind`` ("solve", "sweep"), strings as str;
     a file of another kind is a CaseError."""
-    if f.attrs.get("kind") != kind:
+    if validate.kind_of(f) != kind:
         raise CaseError(f"is not a critfric {kind} file (no kind = '{kind}' attribute)",
                         file=str(path))
     validate.check(f, kind, Path(path))

@@ -51,7 +51,7 @@ from .._version import __version__
 from ..errors import CaseError, WriteError
 from .results import file_attrs
 from .safety import NO_ROOM, check_output, held, write_whole
-from .validate import SCHEMA_VERSION
+from .validate import SCHEMA_VERSION, kind_of
 
 STR = h5py.string_dtype()
 FLOAT_COLUMNS = ("nu", "size", "h", "seconds")
@@ -79,8 +79,9 @@ def open_sweep(path: Path, *, case, grid, force: bool = False) -> set[tuple]:
     if path.exists() and not force:
         try:
             with h5py.File(path, "r") as f:
-                kind = f.attrs.get("kind")
-                same = f.attrs.get("case_toml") == toml and f.attrs.get("grid") == grid_json
+                kind = kind_of(f)
+                same = _same_text(f.attrs.get("case_toml"), toml) \
+                    and _same_text(f.attrs.get("grid"), grid_json)
         except OSError as exc:
             raise CaseError(f"exists and cannot be read as a sweep file ({exc}); pass --force "
                             "to overwrite it", file=str(path), key="--output") from None
@@ -92,7 +93,15 @@ def open_sweep(path: Path, *, case, grid, force: bool = False) -> set[tuple]:
                             "slip angle, count, grading); pass --force to discard it and start "
                             "over, or "
                             "choose another --output", file=str(path), key="--output")
-        return {row_key(r) for r in read_sweep(path)["rows"]}
+        rows = read_sweep(path)["rows"]
+        with h5py.File(path, "r") as f:
+            fixed = [f"{g}/{name}" for g in ("points", "minima") if g in f
+                     for name, ds in f[g].items() if not _growable(ds)]
+        if fixed:
+            raise CaseError(f"dataset {fixed[0]!r} cannot grow (critfric writes resizable "
+                            "columns): not a sweep file critfric wrote; pass --force to "
+                            "overwrite it", file=str(path), key="--output")
+        return {row_key(r) for r in rows}
     count = int(case.solve["count"])
 
     def fill(f: h5py.File) -> None:
@@ -120,6 +129,17 @@ def open_sweep(path: Path, *, case, grid, force: bool = False) -> set[tuple]:
         _replace(path, buffer.getbuffer(), "create", "nothing was written (no point was "
                  "computed yet)")
     return set()
+
+
+def _growable(ds) -> bool:
+    """Whether ``ds`` is a column :func:`append_point` can extend (chunked, unlimited)."""
+    return isinstance(ds, h5py.Dataset) and ds.chunks is not None and ds.maxshape[0] is None
+
+
+def _same_text(value, text: str) -> bool:
+    """Whether an attribute is the string ``text`` (an array or a number is not)."""
+    return isinstance(value, (str, bytes)) and \
+        (value.decode(errors="replace") if isinstance(value, bytes) else value) == text
 
 
 @contextmanager

@@ -22,8 +22,8 @@ from __future__ import annotations
 import bisect
 import re
 
-STATEMENTS = frozenset(["Point", "Line", "Circle", "Ellipse", "Spline", "BSpline", "Bezier", "Curve", "Loop", "Surface", "Plane", "Physical", "Transfinite", "Recombine", "Characteristic", "Length", "MeshSize", "Mesh", "Field", "Background", "Coherence", "Delete", "Compound", "Translate", "Rotate", "Symmetry", "Dilate", "Duplicata", "Extrude", "Layers", "Recombine", "Boundary", "CombinedBoundary", "For", "In", "EndFor", "If", "ElseIf", "Else", "EndIf", "Using", "Progression", "Bump", "Beta", "Left", "Right", "Alternate", "AlternateLeft", "AlternateRight", "Smoothing", "Reverse", "Reverse", "Rectangle", "Disk", "Circle", "BooleanUnion", "BooleanDifference", "BooleanIntersection", "BooleanFragments", "SetFactory", "Hide", "Show", "Geometry", "Color", "Macro", "Function", "Call", "Return", "Printf"])
-FUNCTIONS = frozenset(["Sqrt", "Sin", "Cos", "Tan", "Asin", "Acos", "Atan", "Atan2", "Sinh", "Cosh", "Tanh", "Exp", "Log", "Log10", "Fabs", "Abs", "Floor", "Ceil", "Round", "Fmod", "Modulo", "Hypot", "Rand", "Min", "Max", "Pi", "Sign", "Step", "newp", "newl", "news", "newll", "newc", "newreg", "newf", "newcl", "newsl", "newv", "newvl"])
+STATEMENTS = frozenset(["Point", "Line", "Circle", "Ellipse", "Spline", "BSpline", "Bezier", "Curve", "Loop", "Surface", "Plane", "Physical", "Transfinite", "Recombine", "Characteristic", "Length", "MeshSize", "Mesh", "Field", "Background", "Coherence", "Delete", "Compound", "Translate", "Rotate", "Symmetry", "Dilate", "Duplicata", "Extrude", "Layers", "Recombine", "Boundary", "CombinedBoundary", "For", "In", "EndFor", "If", "ElseIf", "Else", "EndIf", "Using", "Progression", "Bump", "Beta", "Left", "Right", "Alternate", "AlternateLeft", "AlternateRight", "Smoothing", "Reverse", "Reverse", "Rectangle", "Disk", "Circle", "BooleanUnion", "BooleanDifference", "BooleanIntersection", "BooleanFragments", "SetFactory", "Hide", "Show", "Geometry", "Color", "Macro", "Function", "Call", "Return", "Printf", "Volume", "Box", "Block", "Sphere", "Cylinder", "Cone", "Torus", "Wedge", "Ellipsoid", "Ellipsis", "CatmullRom", "Nurbs", "Knots", "Order", "Ruled", "ThruSections", "ThickSolid", "Wire", "Fillet", "Chamfer", "Affine", "Periodic", "Recursive"])
+FUNCTIONS = frozenset(["Sqrt", "Sin", "Cos", "Tan", "Asin", "Acos", "Atan", "Atan2", "Sinh", "Cosh", "Tanh", "Exp", "Log", "Log10", "Fabs", "Abs", "Floor", "Ceil", "Round", "Fmod", "Modulo", "Hypot", "Rand", "Min", "Max", "Pi", "Sign", "Step", "ArcCos", "ArcSin", "ArcTan", "ArcTan2", "LinSpace", "LogSpace", "newp", "newl", "news", "newll", "newc", "newreg", "newf", "newcl", "newsl", "newv", "newvl"])
 OPTIONS = {
     "Mesh": frozenset(["CharacteristicLengthMax", "CharacteristicLengthMin", "CharacteristicLengthFactor", "CharacteristicLengthFromPoints", "CharacteristicLengthFromCurvature", "CharacteristicLengthExtendFromBoundary", "MeshSizeMax", "MeshSizeMin", "MeshSizeFactor", "MeshSizeFromPoints", "MeshSizeFromCurvature", "MeshSizeExtendFromBoundary", "MeshSizeFromParametricPoints", "Algorithm", "RecombineAll", "RecombinationAlgorithm", "Smoothing", "ElementOrder", "SecondOrderLinear", "SecondOrderIncomplete", "Optimize", "OptimizeNetgen", "OptimizeThreshold", "RandomFactor", "RandomSeed", "AngleToleranceFacetOverlap", "SubdivisionAlgorithm", "TransfiniteTri", "MinimumCirclePoints", "MinimumCurvePoints"]),
     "Geometry": frozenset(["Tolerance", "ToleranceBoolean", "AutoCoherence", "OCCBooleanPreserveNumbering", "MatchMeshTolerance"]),
@@ -31,12 +31,65 @@ OPTIONS = {
 FIELD_TYPES = frozenset(["Distance", "Threshold", "MathEval", "MathEvalAniso", "Box", "Ball", "Cylinder", "Frustum", "Min", "Max", "Constant", "Restrict", "Param", "Gradient", "Mean", "Laplacian", "Curvature", "AttractorAnisoCurve", "BoundaryLayer"])
 FIELD_OPTIONS = frozenset(["PointsList", "CurvesList", "EdgesList", "SurfacesList", "FacesList", "NodesList", "NumPointsPerCurve", "Sampling", "InField", "FieldsList", "FieldX", "FieldY", "FieldZ", "SizeMin", "SizeMax", "DistMin", "DistMax", "LcMin", "LcMax", "Sigmoid", "StopAtDistMax", "F", "M11", "M12", "M13", "M22", "M23", "M33", "VIn", "VOut", "XMin", "XMax", "YMin", "YMax", "ZMin", "ZMax", "Thickness", "XCenter", "YCenter", "ZCenter", "XAxis", "YAxis", "ZAxis", "Radius", "InnerRadius", "R1", "R2", "R1_inner", "R2_inner", "Z1", "Z2", "X1", "X2", "Y1", "Y2", "Value", "IncludeBoundary", "Kind", "Delta", "Size", "SizeFar", "Ratio", "Thickness", "hwall_n", "hfar", "IncludeVolumes"])
 
+# as gmsh's lexer: a string runs to the next quote of its kind, line breaks included, and
+# knows no escapes; a comment to the end of its line or to */
 _LEXER = re.compile(
     r"(?P<comment>//[^\n]*|/\*.*?(?:\*/|\Z))"
-    r'|(?P<string>"(?:[^"\\\n]|\\.)*"?)'
+    r"""|(?P<string>"[^"]*"?|'[^']*'?)"""
     r"|(?P<num>\d+\.\d*(?:[Ee][-+]?\d+)?|\d*\.\d+(?:[Ee][-+]?\d+)?|\d+[Ee][-+]?\d+|\d+)"
     r"|(?P<name>[A-Za-z_][A-Za-z0-9_]*)"
-    r"|(?P<space>\s+)|(?P<other>.)", re.DOTALL)
+    r"|(?P<space>\s+)|(?P<other>.)", re.DOTALL | re.ASCII)
+
+
+#: gmsh's own words, never a variable (a name "assigned" where gmsh does not parse, e.g. in
+#: ``If (0) ... EndIf``, would otherwise pass as one): the keywords of gmsh's lexer
+#: (src/parser/Gmsh.l) and the command names its grammar compares (src/parser/Gmsh.y), gmsh 4.15
+RESERVED = frozenset("""
+    Abort Abs AbsolutePath Acos AdaptMesh Affine Alias AliasWithOptions All AlternateLeft
+    AlternateRight Append ArcCos ArcSin ArcTan ArcTan2 Asin Atan Atan2 BSpline Background
+    Beta Beta_HWall Beta_Symmetrical Beta_Symmetrical_HWall Betti Bezier Block
+    BooleanCoherence BooleanCommon BooleanCut BooleanDifference BooleanFragments
+    BooleanFuse BooleanIntersection BooleanSection BooleanUnion BoundaryLayer BoundingBox
+    Box Bump Bump_HWall Call Catenary CatmullRom Ceil CenterOfMass Chamfer Characteristic
+    Circle ClassifySurfaces Closest CodeName Coherence Cohomology Color ColorTable Combine
+    Compound Cone Coordinates CopyOptions Cos Cosh Cpu Crack CreateDir CreateGeometry
+    CreateMeshEdges CreateMeshFaces CreateOverlaps CreateTopology CurrentDir
+    CurrentDirectory CurrentFileName Curvature Curve Cut CutMesh CutMeshTri Cylinder
+    DefineConstant DefineNumber DefineString Degenerated Delete Dilate DimNameSpace
+    DirName Disk Draw ElementsByViewName ElementsFromAllViews ElementsFromVisibleViews
+    Ellipse Ellipsis Ellipsoid Elliptic Else ElseIf Embedded Empty EndFor EndIf Error
+    Euclidean Euclidian Exists Exit Exp Extrude Fabs Field FileExists Fillet Find
+    FixRelativePath Floor Fmod For Function GMSH_MAJOR_VERSION GMSH_MINOR_VERSION
+    GMSH_PATCH_VERSION GeoEntity Geometry GetEnv GetForced GetForcedStr GetNumber
+    GetString GetStringValue GetValue GmshExecutableName HealShapes Hide Hole Homology
+    Hypot INTERPOLATION_SCHEME If In Include Index Intersect Intersection Knots Layers
+    Left Length Levelset LinSpace Line List ListFromFile Log Log10 LogSpace LowerCase
+    LowerCaseIn MPI_Rank MPI_Size Macro Mass MathEval MatrixOfInertia Max Memory Merge
+    MergeWithBoundingBox Mesh MeshAlgorithm MeshSize MeshSizeFromBoundary Meshes Min Model
+    Modulo N2S NameStruct NameToString NewModel NonBlockingSystemCall Normal Nurbs
+    OnelabAction OnelabRun OptimizeMesh Options Order Parametric Parent PartitionMesh
+    Periodic Physical Physicals Pi Plane Plugin Point PolarSphere PostView Power Print
+    Printf Progression Progression_HWall QuadTriAddVerts QuadTriAddverts QuadTriNoNewVerts
+    QuadTriNoNewverts QuadTriNonewVerts QuadTriNonewverts QuadTriaddVerts QuadTriaddverts
+    QuadTrinoNewVerts QuadTrinoNewverts QuadTrinonewVerts QuadTrinonewverts Quadric
+    QuadtriAddVerts QuadtriAddverts QuadtriNoNewVerts QuadtriNoNewverts QuadtriNonewVerts
+    QuadtriNonewverts QuadtriaddVerts Quadtriaddverts QuadtrinoNewVerts QuadtrinoNewverts
+    QuadtrinonewVerts Quadtrinonewverts Rand RecombLaterals Recombine RecombineMesh
+    Recomblaterals Rectangle Recursive RefineMesh RelocateMesh Remesh RenumberMeshElements
+    RenumberMeshNodes ReorientMesh Return Reverse ReverseMesh Right Rotate Round Ruled S2N
+    Save ScaleLastLayer SendToServer SetChanged SetCurrentWindow SetFactory SetMaxTag
+    SetName SetNumber SetOrder SetPartition SetString SetTag Sewing ShapeFromFile Show Sin
+    Sinh Sleep Slide Smoother Sphere Spline Split SplitCurrentWindowHorizontal
+    SplitCurrentWindowVertical SplitMesh Sprintf Sqrt Step Str StrCat StrChoice StrCmp
+    StrFind StrLen StrPrefix StrRelative StrReplace StrSub StringToName Struct Surface
+    Symmetry SyncModel System SystemCall T2 T3 TIME Tan Tanh TestLevel TextAttributes
+    ThickSolid ThruSections TimeSteps TimeStepsByViewName TimeStepsFromAllViews
+    TimeStepsFromVisibleViews Today Torus TotalMemory TransfQuadTri TransfQuadtri
+    Transfinite TransformMesh TransfquadTri Transfquadtri Translate UndefineConstant Union
+    Unique UnsplitWindow UpperCase Using Variables View Views Volume Warning Wedge Wire
+    all
+""".split())  # noqa: SIM905 (a word list)
+MAX_STRING = 1000  # gmsh's lexer cuts a string at 1023 characters and reads the rest as code
 
 
 _RUNS = "runs a shell command"
@@ -81,15 +134,24 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
     seen: set[int] = set()
     field_options: set[int] = set()  # token indices of Field[...].<option> names
 
+    if "\0" in text:  # gmsh ends a string or comment there and reads on as statements
+        refuse(text.index("\0"), "NUL", "a NUL character (not text)")
     for i, (kind, value, offset) in enumerate(tokens):
         if kind == "other" and value in "$@\\`":
             refuse(offset, value, "not part of the geometry language")
+        if kind == "string" and (len(value) < 2 or value[-1] != value[0]):
+            refuse(offset, value[:1], "a string that is not closed")
+        elif kind == "string" and len(value) - 2 > MAX_STRING:
+            refuse(offset, value[:1], f"a string of more than {MAX_STRING} characters")
         if kind != "name":
             continue
         before = tokens[i - 1][1] if i else ""
         after = tokens[i + 1][1] if i + 1 < len(tokens) else ""
         if before == "." and (i in field_options or i >= 2 and tokens[i - 2][1] in OPTIONS):
             continue  # an option (Mesh.X) or field option (Field[1].X): checked with its owner
+        if before == ".":
+            refuse(offset, value, "an option of a category critfric does not allow")
+            continue
         if value in OPTIONS:
             if after == ".":
                 option = tokens[i + 2][1] if i + 2 < len(tokens) else ""
@@ -130,13 +192,14 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
             if before in ("Function", "Macro"):
                 defined.add(value)
             continue
-        if before in ("Function", "Macro"):
-            defined.add(value)
-            continue
-        # a variable: defined by `name =`, `name[] =`, `name(...) =`, `name += ...`, `For name`
-        if after in ("=", "[", "(", "+", "-", "*", "/", "~") and _assigns(tokens, i) \
-                or before == "For":
-            defined.add(value)
+        # a variable or macro: defined by `name =`, `name[] =`, `name(...) =`, `name += ...`,
+        # `For name`, `Macro name`; never one of gmsh's own words
+        if before in ("Function", "Macro", "For") or after in (
+                "=", "[", "(", "+", "-", "*", "/", "~") and _assigns(tokens, i):
+            if value in RESERVED:
+                refuse(offset, value, "a word of the gmsh language, not a variable")
+            else:
+                defined.add(value)
             continue
         refuse(offset, value, "not a geometry or meshing statement critfric allows, nor a "
                "variable assigned before")

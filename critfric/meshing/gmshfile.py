@@ -36,7 +36,7 @@ from ..guards import Footprint
 from .geoscript import refusals
 from .gmshfile3d import build as build_solid
 from .gmshfile3d import domain_entities, has_solid_cells, mesh_solid_geo, read_solid_msh
-from .mesh import _gmsh_session, inline_mesh
+from .mesh import _gmsh_session, check_group_names, inline_mesh
 from .sandbox import max_nodes, read_input, run_in_child, set_stage
 
 ENTRY = "critfric.meshing.gmshfile:child_mesh"  # what the sandboxed child runs
@@ -126,6 +126,7 @@ def read_msh(path: Path, *, element: str, domain: list[str] | None = None,
                         key="geometry.file") from None
     names = {str(k): (int(v[0]), int(v[1])) for k, v in (m.field_data or {}).items()
              if np.size(v) >= 2}
+    check_group_names(names, path)
     physical = m.cell_data.get("gmsh:physical") or [None] * len(m.cells)
     sets = m.cell_sets or {}
 
@@ -265,6 +266,23 @@ def _extract(surfaces: list[int]):
     return points, index[cells.astype(np.int64)], edges
 
 
+#: the most passes an untrusted script may ask of gmsh's mesh smoother (each pass costs about
+#: a meshing; a billion kept the CPU busy until the sandbox stopped it)
+MAX_PASSES = {"Mesh.Smoothing": 100}
+
+
+def _check_passes(path: Path) -> None:
+    """Refuse an untrusted script whose options ask gmsh for more passes than MAX_PASSES."""
+    import gmsh
+
+    for option, most in MAX_PASSES.items():
+        value = gmsh.option.getNumber(option)
+        if not value <= most:
+            raise CaseError(f"sets {option} = {value:g}; allowed: at most {most} in a script "
+                            "that is not trusted (--trust-geo lifts this)", file=str(path),
+                            key="geometry.file")
+
+
 def mesh_geo(path: Path, *, element: str, size: float | None = None,
              domain: list[str] | None = None, trust: bool = False,
              check: Callable[..., None] | None = None,
@@ -294,6 +312,8 @@ def mesh_geo(path: Path, *, element: str, size: float | None = None,
         except Exception as exc:  # gmsh reports script errors as bare Exceptions
             raise CaseError(f"gmsh cannot read this script: {exc}", file=str(path),
                             key="geometry.file") from None
+        if not trust:
+            _check_passes(path)
         stage(f"meshing {3 if gmsh.model.getEntities(3) else 2}")
         if gmsh.model.getEntities(3):  # a 3D body: its volumes are meshed
             gmsh.option.setNumber("Mesh.ElementOrder", 1)
@@ -326,6 +346,7 @@ def mesh_geo(path: Path, *, element: str, size: float | None = None,
         except Exception as exc:
             raise SolverError(f"gmsh failed to mesh {name}: {exc}; try another mesh size")
         points, cells, edges = _extract(surfaces)
+        check_group_names(edges, path)
     if len(cells) == 0:
         raise CaseError("gmsh made no cells from this script", file=str(path),
                         key="geometry.file")

@@ -23,7 +23,7 @@ from ..errors import CaseError, SolverError
 from ..fem.arrays import distinct
 from ..fem.mesh import Mesh
 from .cells3d import inline_solid
-from .mesh import MIN_QUALITY
+from .mesh import MIN_QUALITY, check_group_names
 from .solid import SolidFootprint
 
 SOLID_CELLS = {"tetra": 4, "tetra10": 4, "hexahedron": 8, "hexahedron20": 8,
@@ -142,6 +142,7 @@ def domain_entities(dim: int, domain: list[str] | None, path: Path, name: str) -
         return [tag for _, tag in gmsh.model.getEntities(dim)]
     groups = {gmsh.model.getPhysicalName(dim, t) or str(t): t
               for _, t in gmsh.model.getPhysicalGroups(dim)}
+    check_group_names(groups, path)
     missing = [n for n in domain if n not in groups]
     if missing:
         what = "volume" if dim == 3 else "surface"
@@ -250,8 +251,9 @@ def mesh_solid_geo(path: Path, *, h: float, domain: list[str] | None, check, nam
                  for etype, _, nodes in zip(*gmsh.model.mesh.getElements(2, int(s)))
                  if int(etype) == facet_type]
         if parts:
-            faces[gmsh.model.getPhysicalName(dim, group) or str(group)] = index[
-                np.concatenate(parts).astype(np.int64)]
+            name = gmsh.model.getPhysicalName(dim, group) or str(group)
+            check_group_names([name], path)
+            faces[name] = index[np.concatenate(parts).astype(np.int64)]
     if not faces:
         raise CaseError("the script has no physical surface; allowed: a 3D geometry whose "
                         "boundary faces (the contact and Dirichlet faces at least) are "

@@ -29,6 +29,17 @@ from .singular import singular_points, split_at_junctions
 #: also ~10x faster than gmsh at the same size.
 NEST_FRACTION = 1 / 32
 MIN_QUALITY = 1e-6  # inline and file meshes: area / longest edge^2 of every cell at least this
+MAX_NAME = 200  # characters of a physical group's name
+
+
+def check_group_names(names, path) -> None:
+    """Refuse a physical group name of a gmsh file that is not short printable text (names
+    reach messages, terminals and result files)."""
+    for name in names:
+        if not (isinstance(name, str) and 0 < len(name) <= MAX_NAME and name.isprintable()):
+            raise CaseError(f"physical group name {str(name)[:MAX_NAME]!r} is not printable "
+                            f"text; allowed: names of 1 to {MAX_NAME} printable characters",
+                            file=str(path), key="geometry.file")
 
 
 # ---------------------------------------------------------------------------------------------

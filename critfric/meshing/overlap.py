@@ -5,6 +5,7 @@ A cell may be numbered in either orientation (the numbering is not geometry: eac
 reoriented), but the cells must not fold over each other or overlap. Refused, with the cell
 indices (in the order the cells were given) named:
 
+* two nodes at one point (a mesh cut open there: duplicate nodes never merged);
 * repeated cells (the same node set twice);
 * a fold: two cells on the same side of their shared edge (2D) or face (3D), which is what
   an inverted cell or an overlapping neighbour gives (both run the shared edge or face in the
@@ -33,6 +34,20 @@ from ..errors import CaseError
 
 CHUNK = 1 << 20  # pairs of (point or edge, edge) per numpy pass
 INSIDE = 1e-9  # the test points: this fraction of a facet's size inside it
+SAME_POINT = 1e-12  # two nodes closer than this times the body's size are one point
+
+
+def _coincident(points: np.ndarray, key: str) -> None:
+    """Two nodes at one point (to 1e-12 of the body's size)."""
+    scale = float(np.ptp(points, axis=0).max()) or 1.0
+    grid = np.round((points - points.min(axis=0)) / (SAME_POINT * scale)).astype(np.int64)
+    order = np.lexsort(grid.T[::-1])
+    same = np.flatnonzero(np.all(grid[order[1:]] == grid[order[:-1]], axis=1))
+    if len(same):
+        i, j = sorted(int(x) for x in order[[same[0], same[0] + 1]])
+        raise CaseError(f"{i} and {j} are at the same point {points[i].tolist()}: the "
+                        "mesh is cut open there (duplicate nodes not merged); allowed: one node "
+                        "per point (merge duplicates, e.g. gmsh's Coherence Mesh)", key=key)
 
 
 def _duplicates(rows: np.ndarray, key: str, what: str) -> None:
@@ -65,7 +80,13 @@ def _fold(directed: np.ndarray, width: int, key: str, what: str) -> None:
 
 
 def check_tiling_2d(points: np.ndarray, cells: np.ndarray, key: str) -> None:
-    """``cells`` (n, 3 or 4) counterclockwise; CaseError naming ``key`` and the cells."""
+    """``cells`` (n, 3 or 4) counterclockwise; CaseError naming ``key`` and the cells (or
+    the nodes at one point, where the cells tile but are cut open)."""
+    _tiling_2d(points, cells, key)
+    _coincident(points, "geometry.nodes")
+
+
+def _tiling_2d(points: np.ndarray, cells: np.ndarray, key: str) -> None:
     nv = cells.shape[1]
     _duplicates(cells, key, "triangle" if nv == 3 else "quadrangle")
     directed = np.stack([cells, np.roll(cells, -1, axis=1)], axis=-1).reshape(-1, 2)
@@ -195,7 +216,16 @@ def _containing(points: np.ndarray, cells: np.ndarray, p: np.ndarray) -> np.ndar
 def check_tiling_3d(points: np.ndarray, cells: np.ndarray, faces: np.ndarray,
                     key: str) -> None:
     """``cells`` (n, 4 or 8) of positive volume with their outward ``faces`` (local vertex
-    lists, (n_faces, 3 or 4)); CaseError naming ``key`` and the cells."""
+    lists, (n_faces, 3 or 4)); CaseError naming ``key`` and the cells (or
+    the nodes at one point, where the cells tile but are cut open)."""
+    _tiling_3d(points, cells, faces, key)
+    _coincident(points, "geometry.nodes")
+
+
+def _tiling_3d(points: np.ndarray, cells: np.ndarray, faces: np.ndarray,
+               key: str) -> None:
+    """``cells`` (n, 4 or 8) of positive volume with their outward ``faces`` (local vertex
+    lists, (n_faces, 3 or 4)); the checks of :func:`check_tiling_3d` but the last."""
     nf = len(faces)
     _duplicates(cells, key, "tetrahedron" if cells.shape[1] == 4 else "hexahedron")
     directed = cells[:, faces].reshape(-1, faces.shape[1])

@@ -29,6 +29,7 @@ from ..fem.arrays import distinct
 from ..fem.loads import traction_load
 from ..files.export import SolveData, mode_fields, read_solve
 from ..files.sweepfile import read_sweep
+from ..files.validate import kind_of
 from .meshdraw import segments as _segments
 from .meshdraw import triangles as _triangles
 from .saving import FORMATS, save_figures
@@ -62,7 +63,7 @@ def figures(path: Path | str, *, nu: float | None = None) -> dict[str, Figure]:
     path = Path(path)
     try:
         with h5py.File(path, "r") as f:
-            kind = f.attrs.get("kind")
+            kind = kind_of(f)
     except OSError as exc:
         raise CaseError(f"cannot read this file ({exc})", file=str(path)) from None
     if kind == "sweep":

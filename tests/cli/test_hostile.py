@@ -50,6 +50,92 @@ def test_geo_statements_outside_the_allow_list_are_refused(tmp_path, attack):
     assert not p.exists()
 
 
+LEXER_ATTACKS = {  # a script whose words the check must split exactly as gmsh does
+    "a string over a line break": ('x = "\n// "; SystemCall "touch {p}";', "SystemCall"),
+    "a string over a block comment": ('x = "\n/* "; SystemCall "touch {p}"; y = " */";',
+                                      "SystemCall"),
+    "a single-quoted string": ("x = '\"'; SystemCall \"touch {p}\";", "SystemCall"),
+    "no escapes in strings": ('x = "\\"; SystemCall "touch {p}"; y = "\\";', "SystemCall"),
+    "a string gmsh cuts": ('x = "' + "a" * 1100 + 'SystemCall "touch {p}"; ";',
+                           "more than 1000 characters"),
+    "a NUL in a string": ('x = "a\0"; SystemCall "touch {p}"; y = "";', "NUL"),
+    "a keyword defined where gmsh does not parse": (
+        'If (0) GetEnv = 1; EndIf\nx = GetEnv("HOME");', "GetEnv (a word of the gmsh language"),
+    "an indexed option": ("Mesh[0].Format = 1;", "Format"),
+    "a string never closed": ('x = "abc', "not closed"),
+}
+
+
+@pytest.mark.parametrize("attack", sorted(LEXER_ATTACKS))
+def test_scripts_are_split_into_words_as_gmsh_splits_them(tmp_path, attack):
+    p = tmp_path / "pwned"
+    statement, word = LEXER_ATTACKS[attack]
+    res, before = _run_file(tmp_path, "body.geo", SQUARE_GEO + statement.format(p=p) + "\n")
+    _refused(res, tmp_path, before, "body.geo", word, "--trust-geo")
+    assert not p.exists()
+
+
+def test_strings_quotes_and_keywords_of_a_plain_script_pass():
+    script = SQUARE_GEO + ("lc = 0.1; s = \"a\nb\"; t = 'q \"'; u = \"c:\\\\\";\n"
+                           "For i In {1:3}\nEndFor\nMacro m\nReturn\nCall m;\n"
+                           "Mesh.Algorithm = 6; Field[1] = Box; Field[1].VIn = lc;\n")
+    assert geoscript.refusals(script) == []
+
+
+def test_an_untrusted_script_may_not_smooth_a_billion_times(tmp_path):
+    res, before = _run_file(tmp_path, "body.geo", SQUARE_GEO + "Mesh.Smoothing = 1e9;\n")
+    _refused(res, tmp_path, before, "body.geo", "Mesh.Smoothing", "--trust-geo")
+
+
+SEAM_MSH = """$MeshFormat
+2.2 0 8
+$EndMeshFormat
+$PhysicalNames
+3
+1 1 "bottom"
+1 2 "{top}"
+2 3 "domain"
+$EndPhysicalNames
+$Nodes
+6
+1 0 0 0
+2 1 0 0
+3 1 1 0
+4 0 1 0
+5 0.5 0.5 0
+6 0.5 0.5 {z}
+$EndNodes
+$Elements
+6
+1 1 2 1 1 1 2
+2 1 2 2 2 3 4
+3 2 2 3 3 1 2 5
+4 2 2 3 3 2 3 5
+5 2 2 3 3 3 4 {c}
+6 2 2 3 3 4 1 {c}
+$EndElements
+"""
+
+
+def test_a_mesh_with_two_nodes_at_one_point_is_refused(tmp_path):
+    """Cells around a node's copy: the body is cut open there (it answered for another body)."""
+    res, before = _run_file(tmp_path, "body.msh", SEAM_MSH.format(top="top", z=0, c=6))
+    _refused(res, tmp_path, before, "body.msh", "are at the same point [0.5, 0.5]")
+    res = _run_file(tmp_path, "whole.msh", SEAM_MSH.format(top="top", z=0, c=5))[0]
+    assert res.exit_code == 0, res.output
+
+
+def test_group_names_with_terminal_escapes_are_refused(tmp_path):
+    res, before = _run_file(tmp_path, "body.msh", SEAM_MSH.format(top="\x1b]0;owned\x07", z=0,
+                                                                  c=5))
+    _refused(res, tmp_path, before, "body.msh", "not printable")
+    assert "\x1b" not in res.output
+    script = SQUARE_GEO.replace('"top"', '"t\x1b[2Jop"')
+    res, before = _run_file(tmp_path, "body.geo", script.replace("top", "t\x1b[2Jop"))
+    _refused(res, tmp_path, before, "body.geo", "not printable")
+    assert "\x1b" not in res.output
+
+
 def test_a_sidecar_option_file_is_never_read(tmp_path):
     """gmsh reads <script>.opt by itself: the script is meshed from a private copy, alone."""
     p = tmp_path / "pwned.log"
@@ -283,7 +369,57 @@ def _replace(f, key, value):
     f[key] = value
 
 
+def _outside(f, name: str, data=(1234.5678,)):
+    """A file beside the crafted one (in its folder), with one dataset ``data``."""
+    import os
+
+    import h5py
+
+    path = os.path.join(os.path.dirname(f.filename), name)
+    with h5py.File(path, "w") as g:
+        g.create_dataset("data", data=np.array(data, dtype=float), maxshape=(None,),
+                         chunks=(8,))
+    return path
+
+
+def _external_storage(f):
+    import os
+
+    path = os.path.join(os.path.dirname(f.filename), "raw.bin")
+    np.array([1234.5678]).tofile(path)
+    del f["critical/positive"]
+    f.create_dataset("critical/positive", shape=(1,), dtype="<f8", external=[(path, 0, 8)])
+
+
+def _virtual(f):
+    import h5py
+
+    source = _outside(f, "other.h5")
+    layout = h5py.VirtualLayout(shape=(1,), dtype="f8")
+    layout[:] = h5py.VirtualSource(source, "data", shape=(1,))
+    del f["critical/positive"]
+    f.create_virtual_dataset("critical/positive", layout)
+
+
+def _soft_loop(f):
+    import h5py
+
+    f["mesh/a"] = h5py.SoftLink("/mesh/b")
+    f["mesh/b"] = h5py.SoftLink("/mesh/a")
+
+
+OUTSIDE_EDITS = {  # a file that would read another file, or loop
+    "an external link": lambda f: _replace(
+        f, "critical/positive", __import__("h5py").ExternalLink(_outside(f, "other.h5"), "data")),
+    "external storage": _external_storage,
+    "a virtual dataset": _virtual,
+    "soft links in a loop": _soft_loop,
+}
+
+
 SOLVE_EDITS = {
+    **OUTSIDE_EDITS,
+    "kind as an array": lambda f: f.attrs.__setitem__("kind", np.array([1, 2])),
     "strings for eigenvalues": lambda f: _replace(f, "eigen/alpha", np.array([b"x"])),
     "a 2-D family": lambda f: _replace(f, "critical/positive", np.zeros((2, 2))),
     "a missing attribute": lambda f: f.attrs.__delitem__("n_dofs"),
@@ -329,6 +465,49 @@ def test_crafted_sweep_files_are_messages(tmp_path, edit):
     bad = _crafted(tmp_path, good, "bad", SWEEP_EDITS[edit])
     before = _files(tmp_path)
     _refused(run_cli("plot", bad), tmp_path, before, "bad.h5")
+
+
+def _one_point(edit):
+    """A sweep file of two points cut to its first, then ``edit``."""
+    def cut(f):
+        for d in f["points"].values():
+            d.resize(1, axis=0)
+        edit(f)
+    return cut
+
+
+RESUME_EDITS = {
+    "soft links in a loop": lambda f: (f.__setitem__("points/a", __import__("h5py").SoftLink(
+        "/points/b")), f.__setitem__("points/b", __import__("h5py").SoftLink("/points/a"))),
+    "an external link": lambda f: _replace(f, "points/nu", __import__("h5py").ExternalLink(
+        _outside(f, "other.h5", f["points/nu"][()]), "data")),
+    "kind as an array": lambda f: f.attrs.__setitem__("kind", np.array([1, 2])),
+    "a column that cannot grow": lambda f: _replace(f, "points/nu", f["points/nu"][()]),
+}
+
+
+@pytest.mark.parametrize("edit", sorted(RESUME_EDITS))
+def test_a_crafted_sweep_file_is_not_resumed(tmp_path, edit):
+    """Refused before the missing point is computed; the file as it was."""
+    good = tmp_path / "good.h5"
+    args = ["sweep", "four-triangles", "--nu", "0.2,0.3", "-j", "1", "-o"]
+    assert run_cli(*args, good).exit_code == 0
+    bad = _crafted(tmp_path, good, "bad", _one_point(RESUME_EDITS[edit]))
+    before = _files(tmp_path)
+    _refused(run_cli(*args, bad), tmp_path, before, "bad.h5")
+
+
+def test_a_sweep_file_cut_to_one_point_is_resumed(tmp_path):
+    """The control of the test above: the same file unedited gets its missing point."""
+    good = tmp_path / "good.h5"
+    args = ["sweep", "four-triangles", "--nu", "0.2,0.3", "-j", "1", "-o"]
+    assert run_cli(*args, good).exit_code == 0
+    cut = _crafted(tmp_path, good, "cut", _one_point(lambda f: None))
+    res = run_cli(*args, cut)
+    assert res.exit_code == 0, res.output
+    from critfric.files.sweepfile import read_sweep
+
+    assert [r["nu"] for r in read_sweep(cut)["rows"]] == [0.2, 0.3]
 
 
 # ------------------------------------------------------------------------- fuzzing
