@@ -221,6 +221,8 @@ def edge_table(value):
         raise Bad("a table: edge name = [[node, node], ...]")
     out = {}
     for name, rows in value.items():
+        if not _printable(name):
+            raise Bad(f"edge names of printable characters, got {name!r}")
         try:
             out[name] = index_rows((2,))(rows)
         except Bad as bad:
@@ -234,6 +236,8 @@ def face_table(value):
                   "[[node, node, node, node], ...] (quadrilaterals)")
     out = {}
     for name, rows in value.items():
+        if not _printable(name):
+            raise Bad(f"face names of printable characters, got {name!r}")
         try:
             out[name] = index_rows((3, 4))(rows)
         except Bad as bad:

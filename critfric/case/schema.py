@@ -136,7 +136,7 @@ SCHEMA: dict[str, dict[str, c.Key]] = {
         "start": c.Key(c.choice(*STARTS), "auto", "the solutions the curves start from: auto "
                        "(every solution by enumeration when there are at most 8 contact nodes, "
                        "else the Newton solution), newton, enumerate"),
-        "samples": c.Key(c.integer(2, 100001), 101, "parameter values, evenly spaced with the "
+        "samples": c.Key(c.integer(2, 10001), 101, "parameter values, evenly spaced with the "
                          "ends, at which every curve holds a point and (small problems) every "
                          "solution is enumerated"),
         "node": c.Key(c.integer(0, 2**31), None, "contact node (index along t) whose tangential "

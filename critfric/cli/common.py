@@ -10,12 +10,13 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from typer.core import TyperGroup
 from typer.models import ParameterInfo
 
 from ..case.numbers import FINITE_NUMBER, SIGNED_INTEGER, plain_integer, plain_number, shown
 from ..errors import CaseError
 from ..files.safety import check_output, interrupt_guard, output_lock
-from .failures import say
+from .failures import one_line_usage_errors, say
 
 
 def plain_parser(kind: type, low=None, high=None):
@@ -66,6 +67,18 @@ def _numeric_options(function):
             yield (flags or ["--" + name.replace("_", "-")])[0], kind, infos
 
 
+class OneLineGroup(TyperGroup):
+    """The command group: its own and its commands' usage errors are one line each."""
+
+    def make_context(self, *args, **kwargs):
+        with one_line_usage_errors():
+            return super().make_context(*args, **kwargs)
+
+    def invoke(self, ctx):
+        with one_line_usage_errors():
+            return super().invoke(ctx)
+
+
 class PlainNumbersApp(typer.Typer):
     """A typer app whose commands' int and float options all read plain ASCII numbers
     through :func:`plain_parser`, a later option included."""
@@ -90,6 +103,7 @@ def number_options(typer_app: typer.Typer) -> list[tuple[str, str]]:
 
 
 app = PlainNumbersApp(
+    cls=OneLineGroup,
     add_completion=True,
     rich_markup_mode=None,
     no_args_is_help=True,

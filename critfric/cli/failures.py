@@ -1,13 +1,15 @@
 """The one place where errors become messages and exit codes.
 
 A :class:`CritfricError` becomes ``critfric: error: <message>`` on stderr and its exit code
-(2 for bad input, 1 for a numerical or I/O failure); Ctrl-C becomes ``critfric: interrupted``
+(2 for bad input, 1 for a numerical or I/O failure), and so does a usage error of the
+command-line parser (an unknown option, a value out of range: exit 2); Ctrl-C becomes ``critfric: interrupted``
 with what was kept, and exit code 130; SIGTERM (under a command's interrupt guard) the same
 with ``critfric: terminated`` and exit code 143.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -38,9 +40,35 @@ def verbosity() -> int:
 
 
 def say(message: str, level: int = 1) -> None:
-    """One line on stderr (notes, warnings, written files), if the verbosity asks for it."""
+    """One line on stderr (notes, warnings, written files), if the verbosity asks for it;
+    control characters (from a file name, a case or a mesh) escaped, never sent."""
     if level <= _VERBOSITY["level"]:
-        typer.echo(message, err=True)
+        typer.echo(printable(message), err=True)
+
+
+def printable(text: str) -> str:
+    """``text`` with every non-printable character but line breaks as its Python escape."""
+    return "".join(c if c.isprintable() or c == "\n" else repr(c)[1:-1] for c in text)
+
+
+# the parser's usage errors, from the click typer runs on (its own copy in typer 0.20+)
+USAGE_ERROR = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
+HELP_SCREEN = getattr(sys.modules[USAGE_ERROR.__module__], "NoArgsIsHelpError", ())
+
+
+@contextmanager
+def one_line_usage_errors() -> Iterator[None]:
+    """A usage error of the command-line parser as one ``critfric: error:`` line (exit 2),
+    with the command whose ``--help`` lists what is allowed; a help screen stays one."""
+    try:
+        yield
+    except HELP_SCREEN:
+        raise
+    except USAGE_ERROR as exc:
+        where = exc.ctx.command_path if exc.ctx is not None else "critfric"
+        say(f"critfric: error: {exc.format_message()} (see '{where} --help')",
+            level=0)
+        raise typer.Exit(exc.exit_code) from None
 
 
 class Ending:

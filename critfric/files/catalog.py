@@ -6,14 +6,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import h5py
-
 from ..errors import CaseError
+from .opening import kind_of, open_file
 from .pathfile import read_path_summary
 from .results import read_summary
 from .stabilityfile import read_stability_summary
 from .sweepfile import read_sweep
-from .validate import kind_of
 
 
 def summaries(paths) -> tuple[list[dict], list[tuple[Path, str]]]:
@@ -27,8 +25,11 @@ def summaries(paths) -> tuple[list[dict], list[tuple[Path, str]]]:
     skipped: list[tuple[Path, str]] = []
     for path in map(Path, paths):
         try:
-            with h5py.File(path, "r") as f:
+            with open_file(path) as f:
                 kind = kind_of(f)
+        except CaseError as exc:
+            skipped.append((path, exc.detail))
+            continue
         except (OSError, ValueError) as exc:
             reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else "not HDF5"
             skipped.append((path, f"cannot read this file ({reason})"))

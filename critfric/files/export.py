@@ -25,6 +25,7 @@ import numpy as np
 from ..errors import CaseError
 from ..fem.assembly import cell_stress, lame, von_mises
 from ..fem.mesh import Mesh
+from .opening import open_file
 from .results import file_attrs, r_of
 from .safety import check_output, staged
 
@@ -91,7 +92,7 @@ def read_solve(path: Path | str) -> SolveData:
     """Read a file written by ``critfric solve`` (2D or 3D)."""
     path = Path(path)
     try:
-        with h5py.File(path, "r") as f:
+        with open_file(path) as f:
             attrs = file_attrs(f, "solve", path)
             element = f["mesh/cells"].attrs["element"]
             element = element.decode() if isinstance(element, bytes) else str(element)

@@ -44,6 +44,7 @@ import numpy as np
 
 from ..errors import CaseError
 from ..fem.mesh import Mesh
+from .opening import open_file
 from .results import _describe, _strings, case_attrs, file_attrs, text_list, write_mesh
 from .safety import atomic_h5, check_output
 from .validate import POINT_VALUES
@@ -206,7 +207,7 @@ def read_path(path: Path | str) -> dict:
     Validated first: a malformed file is a CaseError naming the file and what is wrong."""
     path = Path(path)
     try:
-        with h5py.File(path, "r") as f:
+        with open_file(path) as f:
             a = file_attrs(f, "path", path)
             curves = []
             for i in range(len(f["curves"])):
@@ -265,7 +266,7 @@ def read_path_summary(path: Path | str) -> dict:
     critical coefficient, unbounded) and the seconds."""
     path = Path(path)
     try:
-        with h5py.File(path, "r") as f:
+        with open_file(path) as f:
             a = file_attrs(f, "path", path)
             e = f["events"]
             branches = [{"value": v, "critical": _opt(c), "unbounded": bool(u)}

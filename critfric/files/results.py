@@ -40,6 +40,7 @@ from ..fem.contact3d import plane_axes, slip_directions
 from ..solvers.eigen import INFINITE_TOL, RESIDUAL_TOL
 from ..solvers.from_case import plane_positions, slip_angles
 from . import validate
+from .opening import kind_of, open_file
 from .safety import atomic_h5, check_output
 from .validate import SCHEMA_VERSION, SOLID_VERSION
 
@@ -201,7 +202,7 @@ def _describe(name: str, obj, dim: int = 2) -> None:
 def file_attrs(f: h5py.File, kind: str, path: Path) -> dict:
     """The root attributes of a critfric file of ``kind`` ("solve", "sweep"), strings as str;
     a file of another kind is a CaseError."""
-    if validate.kind_of(f) != kind:
+    if kind_of(f) != kind:
         raise CaseError(f"is not a critfric {kind} file (no kind = '{kind}' attribute)",
                         file=str(path))
     validate.check(f, kind, Path(path))
@@ -212,7 +213,7 @@ def read_summary(path: Path | str) -> dict:
     """The JSON-style summary of a solve file (as ``critfric solve --json`` prints it)."""
     path = Path(path)
     try:
-        with h5py.File(path, "r") as f:
+        with open_file(path) as f:
             a = file_attrs(f, "solve", path)
             alpha = f["eigen/alpha"][()]
             pos, neg = f["critical/positive"][()], f["critical/negative"][()]

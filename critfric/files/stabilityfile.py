@@ -29,6 +29,7 @@ from ..errors import CaseError
 from ..stability.analysis import first_instability
 from ..stability.fold import FOLD_TOL
 from ..stability.locus import COMPLEX_TOL
+from .opening import open_file
 from .results import _describe, _strings, case_attrs, file_attrs, text_list, write_mesh
 from .safety import atomic_h5, check_output
 
@@ -80,7 +81,7 @@ def read_stability_summary(path: Path | str) -> dict:
     """The JSON-style summary of a stability file (as ``critfric stability --json``)."""
     path = Path(path)
     try:
-        with h5py.File(path, "r") as f:
+        with open_file(path) as f:
             a = file_attrs(f, "stability", path)
             opt = lambda k: None if np.isnan(a[k]) else float(a[k])
             flutter = {d: opt(f"flutter_{d}") for d in DIRECTIONS}

@@ -49,9 +49,10 @@ import numpy as np
 
 from .._version import __version__
 from ..errors import CaseError, WriteError
+from .opening import kind_of, open_file
 from .results import file_attrs
 from .safety import NO_ROOM, check_output, held, write_whole
-from .validate import SCHEMA_VERSION, kind_of
+from .validate import SCHEMA_VERSION
 
 STR = h5py.string_dtype()
 FLOAT_COLUMNS = ("nu", "size", "h", "seconds")
@@ -78,7 +79,7 @@ def open_sweep(path: Path, *, case, grid, force: bool = False) -> set[tuple]:
                         file=str(path), key="--output")
     if path.exists() and not force:
         try:
-            with h5py.File(path, "r") as f:
+            with open_file(path) as f:
                 kind = kind_of(f)
                 same = _same_text(f.attrs.get("case_toml"), toml) \
                     and _same_text(f.attrs.get("grid"), grid_json)
@@ -94,7 +95,7 @@ def open_sweep(path: Path, *, case, grid, force: bool = False) -> set[tuple]:
                             "over, or "
                             "choose another --output", file=str(path), key="--output")
         rows = read_sweep(path)["rows"]
-        with h5py.File(path, "r") as f:
+        with open_file(path) as f:
             fixed = [f"{g}/{name}" for g in ("points", "minima") if g in f
                      for name, ds in f[g].items() if not _growable(ds)]
         if fixed:
@@ -235,7 +236,7 @@ def read_sweep(path: Path) -> dict:
     """Attributes, finished rows and limits of a sweep file."""
     path = Path(path)
     try:
-        with h5py.File(path, "r") as f:
+        with open_file(path) as f:
             attrs = file_attrs(f, "sweep", path)
             g = f["points"]
             n = len(g["status"])

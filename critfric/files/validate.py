@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import CaseError
 from ..fem.contact3d import LAWS
 from ..fem.elements import NAMES, get_element
+from .opening import check_storage
 
 SCHEMA_VERSION = 2  # the layout of the 2D files critfric writes (solve, sweep, stability, path)
 SOLID_VERSION = 3  # the layout of a 3D solve file: points (n, 3), faces, r, slip directions
@@ -48,49 +49,6 @@ PARAMETERS = ("friction", "load")  # as critfric.multiplicity.pathresult
 EVENT_KINDS = ("kink", "fold", "branch")
 POINT_VALUES = ("Un", "Ut", "X", "Y")  # (n, p) datasets of a path file's points
 MODE_NAME = re.compile(r"(positive|negative)_[0-9]{1,9}")  # the groups of a solve file's modes
-MAX_LINKS = 100_000  # objects a file may name (a solve file: ~20 + 4 per mode)
-
-
-def kind_of(f: h5py.File) -> str | None:
-    """The file's root attribute ``kind`` if it is a short printable text, else None."""
-    value = f.attrs.get("kind")
-    if isinstance(value, np.ndarray) and value.shape == ():
-        value = value.item()
-    if not isinstance(value, (str, bytes)) or len(value) > 64:
-        return None
-    text = _text(value)
-    return text if text.isprintable() else None
-
-
-def check_storage(f: h5py.File, bad) -> None:
-    """Refuse a file that names anything outside itself or loops: every link a hard link
-    (no soft or external link), no dataset stored in other files (external storage, virtual
-    datasets), at most MAX_LINKS objects. Nothing of the file is read before this passed."""
-    count = 0
-
-    def visit(name: str, link) -> tuple[str, str] | None:  # a problem stops the walk
-        nonlocal count
-        count += 1
-        if count > MAX_LINKS:
-            return "the file", f"more than {MAX_LINKS} objects"
-        if not isinstance(link, h5py.HardLink):
-            what = {"SoftLink": "a soft link", "ExternalLink": "an external link"}.get(
-                type(link).__name__, "not a hard link")
-            return f"link {name!r}", f"{what} (a critfric file holds only its own data)"
-        try:  # an exception must not leave the callback (h5py's lock)
-            obj = f.get(name)
-            outside = isinstance(obj, h5py.Dataset) and (
-                obj.is_virtual or obj.id.get_create_plist().get_external_count() > 0)
-        except (RuntimeError, OSError, KeyError, ValueError, TypeError) as exc:
-            return f"object {name!r}", f"cannot be read ({exc})"
-        return (f"dataset {name!r}", "stored in other files") if outside else None
-
-    try:
-        problem = f.visititems_links(visit)
-    except (RuntimeError, OSError, KeyError, ValueError, TypeError) as exc:
-        raise bad("the file", f"its structure cannot be read ({exc})") from None
-    if problem is not None:
-        raise bad(*problem)
 
 
 def check(f: h5py.File, kind: str, path: Path) -> None:

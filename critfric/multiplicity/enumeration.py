@@ -36,6 +36,8 @@ from .problems import static_problem
 from .states import LABELS, Condensed
 
 MAX_NODES = 8
+MAX_VALUES = 10_001  # friction values of one table of solutions
+ENUMERATED = 3 * 10**7  # friction values x 4^p contact states: about 4 minutes (8.4 us each)
 SINGULAR_TOL = 1e-9
 RANK_TOL = 1e-8
 REAL_TOL = 1e-8
@@ -280,24 +282,38 @@ def enumerate_solutions(problem: StaticProblem, frictions) -> list[Enumeration]:
 def parse_frictions(text: str) -> np.ndarray:
     """'a:b:N' (N values from a to b) or one value -> friction values (CaseError if bad)."""
 
-    allowed = ("a:b:N (N >= 1 values from a to b, a, b >= 0) or one value >= 0, in plain "
-               "(ASCII) numbers")
+    allowed = (f"a:b:N (1 <= N <= {MAX_VALUES} values from a to b, a, b >= 0) or one value "
+               ">= 0, in plain (ASCII) numbers")
     parts = str(text).split(":")
     if len(parts) not in (1, 3):
         raise CaseError(f"got {shown(text)}; allowed: {allowed}", key="--friction")
     ends = [plain_number(p, "--friction", allowed=allowed, within=text) for p in parts[:2]]
     n = plain_integer(parts[2], "--friction", allowed=allowed, within=text) \
         if len(parts) == 3 else 1
+    if not 1 <= n <= MAX_VALUES:
+        raise CaseError(f"got {shown(text)}; allowed: {allowed}", key="--friction")
     values = np.linspace(ends[0], ends[-1], n)
-    if n < 1 or not np.all(np.isfinite(values) & (values >= 0)):
+    if not np.all(np.isfinite(values) & (values >= 0)):
         raise CaseError(f"got {shown(text)}; allowed: {allowed}", key="--friction")
     return values
 
 
 def solutions_of_case(case, frictions, *, prepared=None) -> list[Enumeration]:
-    """Every solution of the static problem of a case's [load] at each friction value."""
-
-    return enumerate_solutions(static_problem(case, prepared, friction=0.0), frictions)
+    """Every solution of the static problem of a case's [load] at each friction value
+    (CaseError where the enumeration would be too large: over MAX_NODES contact nodes, or
+    over ENUMERATED systems)."""
+    problem = static_problem(case, prepared, friction=0.0)
+    p, n = problem.system.n_contact, len(np.atleast_1d(frictions))
+    if p > MAX_NODES:
+        raise CaseError(f"the mesh has {p} contact nodes: every solution is found among the "
+                        f"4^p contact states; allowed: at most {MAX_NODES} contact nodes (a "
+                        "coarser mesh on Gamma_C, or `critfric path`, which follows the "
+                        "solutions from one)", file=case.source, key="mesh.size")
+    if n * 4**p > ENUMERATED:
+        raise CaseError(f"got {n} friction values: with {p} contact nodes each enumerates "
+                        f"{4**p} contact states, about {n * 4**p * 8.4e-6 / 60:.0f} minutes; "
+                        f"allowed: at most {ENUMERATED // 4**p} values", key="--friction")
+    return enumerate_solutions(problem, frictions)
 
 
 def report_solutions(sweep: list[Enumeration]) -> str:

@@ -28,7 +28,7 @@ from ..solve import prepare
 from ..solvers import coulomb
 from ..solvers.from_case import arc_length, case_problem, check_dimension
 from .arcs import Track
-from .enumeration import MAX_NODES, Enumerator
+from .enumeration import ENUMERATED, MAX_NODES, Enumerator
 from .explore import SAME_TOL, Explorer
 from .pathresult import PathResult
 from .states import Condensed
@@ -37,7 +37,6 @@ MAX_VALUE = 1e6  # |a|, |b| of a range (friction: 1 / INFINITE_TOL of the eigen 
 PIECE_SECONDS = 1e-10  # a piece costs about this x (2p)^3 s (401 nodes: 0.05 s measured)
 MAX_SECONDS = 3600  # refuse a path whose p pieces (one a node, at least) need longer
 MAX_STORED = 5 * 10**7  # sample values x contact nodes, the size of one curve's points
-ENUMERATED = 3 * 10**7  # sample values x 4^p contact states: about 4 minutes (8.4 us each)
 
 
 def _options(case: Case) -> dict:

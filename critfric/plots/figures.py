@@ -18,7 +18,6 @@ import math
 from pathlib import Path
 from textwrap import shorten
 
-import h5py
 import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
@@ -28,8 +27,8 @@ from ..errors import CaseError
 from ..fem.arrays import distinct
 from ..fem.loads import traction_load
 from ..files.export import SolveData, mode_fields, read_solve
+from ..files.opening import kind_of, open_file
 from ..files.sweepfile import read_sweep
-from ..files.validate import kind_of
 from .meshdraw import segments as _segments
 from .meshdraw import triangles as _triangles
 from .saving import FORMATS, save_figures
@@ -62,7 +61,7 @@ def figures(path: Path | str, *, nu: float | None = None) -> dict[str, Figure]:
     to show, compose or save (:func:`plot_file` saves them next to the file)."""
     path = Path(path)
     try:
-        with h5py.File(path, "r") as f:
+        with open_file(path) as f:
             kind = kind_of(f)
     except OSError as exc:
         raise CaseError(f"cannot read this file ({exc})", file=str(path)) from None

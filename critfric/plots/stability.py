@@ -9,13 +9,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import h5py
 import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
 from ..errors import CaseError
 from ..fem.mesh import Mesh
+from ..files.opening import open_file
 from ..files.results import file_attrs
 from .meshdraw import segments as _segments
 
@@ -25,7 +25,7 @@ DIRECTIONS = ("positive", "negative")
 def read_stability(path: Path) -> dict:
     """Every array and attribute the figures need, validated (CaseError otherwise)."""
     try:
-        with h5py.File(path, "r") as f:
+        with open_file(path) as f:
             a = file_attrs(f, "stability", path)
             edges = {k: v[()] for k, v in f["mesh/edges"].items()} if "mesh/edges" in f else {}
             data = {"attrs": a, "friction": f["stability/friction"][()],

@@ -35,7 +35,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from threadpoolctl import ThreadpoolController
 
-from ..errors import SolverError
+from ..errors import CaseError, SolverError
 from ..fem.arrays import distinct
 from ..guards import SPLIT_MIN_ROWS, usable_cpus
 from .pardiso import SINGULAR as _SINGULAR
@@ -71,12 +71,13 @@ def resolve_backend(backend: str = "auto") -> str:
     if backend == "auto":
         return available_backends()[0]
     if backend not in BACKENDS:
-        raise SolverError(f"unknown linear solver backend {backend!r}; allowed: auto, "
-                          + ", ".join(BACKENDS))
+        raise CaseError(f"got {backend!r}; allowed: auto, " + ", ".join(BACKENDS),
+                        key="solve.backend")
     if backend not in available_backends():
-        raise SolverError(f"the linear solver backend {backend!r} is not available here; "
-                          "install it with `pip install critfric[fast]` (x86-64) or use "
-                          "backend = 'auto' or 'scipy'")
+        raise CaseError(f"got {backend!r}, which is not installed here; allowed: "
+                        + ", ".join(("auto",) + available_backends())
+                        + " (`pip install critfric[fast]` adds PARDISO on x86-64)",
+                        key="solve.backend")
     return backend
 
 

@@ -476,6 +476,36 @@ def _one_point(edit):
     return cut
 
 
+@pytest.mark.parametrize("command", ["table", "plot", "export"])
+def test_a_pipe_given_as_a_result_file_is_refused_unopened(tmp_path, command):
+    """Opening a pipe to read waits for a writer: it hung these commands for ever."""
+    import os
+
+    os.mkfifo(tmp_path / "r.h5")
+    start = time.monotonic()
+    res = run_cli(command, tmp_path / "r.h5")
+    assert res.exit_code == 2 and "not a regular file" in res.output, res.output
+    assert res.output.count("critfric: error:") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.h5"]
+    assert time.monotonic() - start < 30
+
+
+def test_control_characters_of_a_case_never_reach_the_terminal(tmp_path):
+    """Edge names are refused; anything else echoed (a file name) is escaped."""
+    case = tmp_path / "c.toml"
+    case.write_text('[geometry]\nshape = "mesh"\nnodes = [[0,0],[1,0],[1,1],[0,1]]\n'
+                    'triangles = [[0,1,2],[0,2,3]]\n[geometry.edges]\nc = [[0,1]]\n'
+                    'd = [[2,3]]\n"\\u001b]0;owned\\u0007" = [[1,2]]\n'
+                    '[boundary]\ncontact = ["c"]\ndirichlet = ["d"]\n')
+    res = run_cli("solve", case, "-o", tmp_path / "out.h5")
+    assert res.exit_code == 2 and "edge names of printable characters" in res.output
+    assert "\x1b" not in res.output and "\\x1b" in res.output, res.output
+    case.write_text('[geometry]\nshape = "file"\nfile = "\\u001b[2J.msh"\n'
+                    '[boundary]\ncontact = ["c"]\ndirichlet = ["d"]\n')
+    res = run_cli("solve", case, "-o", tmp_path / "out.h5")
+    assert res.exit_code == 2 and "\x1b" not in res.output and "\\x1b[2J" in res.output
+
+
 RESUME_EDITS = {
     "soft links in a loop": lambda f: (f.__setitem__("points/a", __import__("h5py").SoftLink(
         "/points/b")), f.__setitem__("points/b", __import__("h5py").SoftLink("/points/a"))),

@@ -27,7 +27,7 @@ BAD = [
     ("range not numbers", "", ("--range", "a:b"), ("--range", "'a:b'")),
     ("friction range below 0", "range = [-1.0, 2.0]", (), ("path.range", "0 <= a")),
     ("range of three numbers in the file", "range = [0, 1, 2]", (), ("path.range", "[a, b]")),
-    ("samples 1", "", ("--samples", "1"), ("path.samples", "[2, 100001]")),
+    ("samples 1", "", ("--samples", "1"), ("path.samples", "[2, 10001]")),
     ("node -1", "", ("--node", "-1"), ("path.node", "integer")),
     ("unknown start", 'start = "guess"', (), ("path.start", "'newton'")),
     ("max_pieces 0", "max_pieces = 0", (), ("path.max_pieces", "[1, 10000000]")),

@@ -156,4 +156,7 @@ def test_cli_solutions_json_and_plot(tmp_path):
     bad = run_cli("solutions", "one-triangle", "--friction", "3:1")
     assert bad.exit_code == 2 and "--friction" in bad.output
     big = run_cli("solutions", "unit-square", "--friction", "1", "--no-plot")
-    assert big.exit_code == 1 and "above 8" in big.output
+    assert big.exit_code == 2 and "at most 8 contact nodes" in big.output  # the case's mesh
+    assert "unit_square.toml: [mesh.size]" in big.output
+    many = run_cli("solutions", "one-triangle", "--friction", "0:3:100000000", "--no-plot")
+    assert many.exit_code == 2 and "N <= 10001" in many.output

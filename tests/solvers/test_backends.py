@@ -179,11 +179,11 @@ def test_unknown_backend_is_a_case_error_naming_the_key():
     assert result.exit_code == 2 and "solve.backend" in result.output
 
 
-def test_missing_backend_is_a_solver_error(monkeypatch):
+def test_a_backend_not_installed_is_a_case_error(monkeypatch):
     monkeypatch.setattr(linsolve, "pardiso_library", lambda: None)
     assert linsolve.available_backends() == ("scipy",)
     assert linsolve.resolve_backend("auto") == "scipy"
-    with pytest.raises(SolverError, match="not available.*critfric\\[fast\\]"):
+    with pytest.raises(CaseError, match="not installed here.*critfric\\[fast\\]"):
         linsolve.resolve_backend("pardiso")
 
 
