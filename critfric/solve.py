@@ -170,7 +170,9 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
         raise exc.located(case.source) from None
     check_dimension(case, mesh.dim)
     contact = [name for name in case.boundary["contact"] if name in mesh.facets]
-    check_dofs(mesh.dim * mesh.n_nodes, element=mesh.element, what="the mesh made",
+    held = _facet_nodes(mesh, [n for n in case.boundary["dirichlet"] if n in mesh.facets])
+    check_dofs(mesh.dim * (mesh.n_nodes - len(held)), element=mesh.element,
+               what="the mesh made",
                source=case.source, max_dofs=max_dofs, dim=mesh.dim,
                backend=case.solve["backend"],
                n_contact=len(_facet_nodes(mesh, contact)))  # what is real

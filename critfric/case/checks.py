@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -124,6 +125,12 @@ def case_output(section):
         raise BadEntry("a relative path ending in .h5, inside the working directory (no "
                        "absolute path, '..' or '~'; the command line's --output may go "
                        "anywhere)", "file", value)
+    here = Path.cwd().resolve()
+    folder = (here / value).parent.resolve()  # symbolic links on the way followed
+    if folder != here and here not in folder.parents:
+        raise BadEntry(f"a path inside the working directory (this one leads to {str(folder)!r} "
+                       "through a symbolic link; the command line's --output may go anywhere)",
+                       "file", value)
     return section
 
 

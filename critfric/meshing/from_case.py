@@ -88,7 +88,7 @@ def _checked_polygon(case: Case, max_dofs: int | None):
     check_dofs(dofs, element=case.mesh["element"], what=f"mesh.size = {h:g}"
                + (f" graded by {g:g}" if g is not None else ""), source=case.source,
                footprint=polygon_footprint(poly.vertices), max_dofs=max_dofs,
-               n_contact=n_contact, backend=case.solve["backend"])
+               n_contact=n_contact, backend=case.solve["backend"], estimate=True)
     return poly
 
 

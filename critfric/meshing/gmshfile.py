@@ -395,7 +395,7 @@ def file_mesh(case, *, max_dofs: int | None = None, trust_geo: bool = False) -> 
     mesh = run_in_child(path, data, job, entry=ENTRY, source=case.source)
     # the estimate misses size fields and transfinite counts: check the real mesh too
     check_dofs(mesh.dim * mesh.n_nodes, element=element, what=f"the mesh of {path.name}",
-               source=case.source, key="geometry.file", max_dofs=max_dofs)
+               source=case.source, key="geometry.file", max_dofs=max_dofs, estimate=True)
     return mesh
 
 

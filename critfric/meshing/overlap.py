@@ -6,6 +6,8 @@ reoriented), but the cells must not fold over each other or overlap. Refused, wi
 indices (in the order the cells were given) named:
 
 * two nodes at one point (a mesh cut open there: duplicate nodes never merged);
+* a hinge: cells that share a node (3D: or an edge) but are joined along no chain of shared
+  edges (3D: faces), a piece that could turn about that node (a singular stiffness);
 * repeated cells (the same node set twice);
 * a fold: two cells on the same side of their shared edge (2D) or face (3D), which is what
   an inverted cell or an overlapping neighbour gives (both run the shared edge or face in the
@@ -50,6 +52,36 @@ def _coincident(points: np.ndarray, key: str) -> None:
                         "per point (merge duplicates, e.g. gmsh's Coherence Mesh)", key=key)
 
 
+def _hinge(points: np.ndarray, cells: np.ndarray, inverse: np.ndarray, key: str,
+           facet: str) -> None:
+    """``inverse`` (n_cells * per-cell,): each cell's facets numbered as one set; a hinge
+    where the cells around a node belong to pieces joined along no chain of facets."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    n_cells, n = len(cells), len(points)
+    inverse = inverse.ravel()
+    owner = np.arange(len(inverse)) // (len(inverse) // n_cells)
+    order = np.argsort(inverse, kind="stable")
+    pair = np.flatnonzero(inverse[order[1:]] == inverse[order[:-1]])  # an interior facet
+    a, b = owner[order[pair]], owner[order[pair + 1]]
+    joined = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(n_cells, n_cells))
+    pieces, label = connected_components(joined, directed=False)
+    if pieces == 1:
+        return
+    node, piece = cells.ravel(), np.repeat(label, cells.shape[1])
+    low = np.full(n, pieces)
+    np.minimum.at(low, node, piece)
+    high = np.full(n, -1)
+    np.maximum.at(high, node, piece)
+    hinged = np.flatnonzero((high >= 0) & (low != high))
+    if len(hinged):
+        i = int(hinged[0])
+        raise CaseError(f"the cells around node {i} at {points[i].tolist()} form pieces joined "
+                        f"there only, along no {facet} (a hinge: one piece could turn about "
+                        f"it); allowed: cells joined along their {facet}s", key=key)
+
+
 def _duplicates(rows: np.ndarray, key: str, what: str) -> None:
     s = np.sort(rows, axis=1)
     order = np.lexsort(s.T[::-1])
@@ -82,11 +114,12 @@ def _fold(directed: np.ndarray, width: int, key: str, what: str) -> None:
 def check_tiling_2d(points: np.ndarray, cells: np.ndarray, key: str) -> None:
     """``cells`` (n, 3 or 4) counterclockwise; CaseError naming ``key`` and the cells (or
     the nodes at one point, where the cells tile but are cut open)."""
-    _tiling_2d(points, cells, key)
+    inverse = _tiling_2d(points, cells, key)
     _coincident(points, "geometry.nodes")
+    _hinge(points, cells, inverse, key, "edge")
 
 
-def _tiling_2d(points: np.ndarray, cells: np.ndarray, key: str) -> None:
+def _tiling_2d(points: np.ndarray, cells: np.ndarray, key: str) -> np.ndarray:
     nv = cells.shape[1]
     _duplicates(cells, key, "triangle" if nv == 3 else "quadrangle")
     directed = np.stack([cells, np.roll(cells, -1, axis=1)], axis=-1).reshape(-1, 2)
@@ -115,6 +148,7 @@ def _tiling_2d(points: np.ndarray, cells: np.ndarray, key: str) -> None:
                         "encloses); allowed: cells that tile the body" if len(shown) > 1 else
                         f"cell {shown[0]} lies over another part of the body; allowed: cells "
                         "that tile the body", key=key)
+    return inverse
 
 
 def _pairs(n: int, m: int):
@@ -218,14 +252,16 @@ def check_tiling_3d(points: np.ndarray, cells: np.ndarray, faces: np.ndarray,
     """``cells`` (n, 4 or 8) of positive volume with their outward ``faces`` (local vertex
     lists, (n_faces, 3 or 4)); CaseError naming ``key`` and the cells (or
     the nodes at one point, where the cells tile but are cut open)."""
-    _tiling_3d(points, cells, faces, key)
+    inverse = _tiling_3d(points, cells, faces, key)
     _coincident(points, "geometry.nodes")
+    _hinge(points, cells, inverse, key, "face")
 
 
 def _tiling_3d(points: np.ndarray, cells: np.ndarray, faces: np.ndarray,
-               key: str) -> None:
+               key: str) -> np.ndarray:
     """``cells`` (n, 4 or 8) of positive volume with their outward ``faces`` (local vertex
-    lists, (n_faces, 3 or 4)); the checks of :func:`check_tiling_3d` but the last."""
+    lists, (n_faces, 3 or 4)); the checks of :func:`check_tiling_3d` but the last two; the
+    faces of the cells numbered as one set (n_cells * n_faces,)."""
     nf = len(faces)
     _duplicates(cells, key, "tetrahedron" if cells.shape[1] == 4 else "hexahedron")
     directed = cells[:, faces].reshape(-1, faces.shape[1])
@@ -250,6 +286,7 @@ def _tiling_3d(points: np.ndarray, cells: np.ndarray, faces: np.ndarray,
                         f"{inside[f].round(12).tolist()} is inside {turns[np.argmax(bad)]:.0f} "
                         "closed boundaries: a second copy of the body, or a body inside "
                         "another); allowed: cells that tile the body", key=key)
+    return inverse
 
 
 def _one_per_piece(tri: np.ndarray, n: int) -> np.ndarray:

@@ -314,7 +314,7 @@ def check_solid(case, *, max_dofs: int | None = None) -> None:
     footprint = prism_footprint(poly, depth)
     check_dofs(footprint.dofs(h, element), element=element, what=f"mesh.size = {h:g}",
                source=case.source, footprint=footprint, max_dofs=max_dofs,
-               n_contact=n_contact, dim=3, backend=case.solve["backend"])
+               n_contact=n_contact, dim=3, backend=case.solve["backend"], estimate=True)
 
 
 def solid_mesh(case, *, max_dofs: int | None = None) -> Mesh:

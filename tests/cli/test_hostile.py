@@ -125,6 +125,42 @@ def test_a_mesh_with_two_nodes_at_one_point_is_refused(tmp_path):
     assert res.exit_code == 0, res.output
 
 
+HINGED = """[geometry]
+shape = "mesh"
+nodes = [[0,0],[1,0],[1,1],[0,1],[0.5,0.5],[2,0],[2,1]]
+triangles = [[0,1,4],[1,2,4],[2,3,4],[3,0,4],[1,5,6]]
+[geometry.edges]
+c = [[0,1],[1,5]]
+d = [[2,3]]{more}
+[boundary]
+contact = ["c"]
+dirichlet = ["d"{also}]
+"""
+
+
+@pytest.mark.parametrize("also", ["", "e"])
+def test_a_piece_joined_at_a_node_only_is_refused(tmp_path, also):
+    """A triangle hinged at one corner can turn: K is singular (PARDISO had answered), even
+    where that triangle is clamped too."""
+    case = tmp_path / "c.toml"
+    case.write_text(HINGED.format(more="\ne = [[5,6]]" if also else "",
+                                  also=', "e"' if also else ""))
+    before = _files(tmp_path)
+    _refused(run_cli("solve", case, "-o", tmp_path / "out.h5"), tmp_path, before, "c.toml",
+             "node 1 at [1.0, 0.0]", "hinge")
+
+
+def test_a_solid_piece_joined_along_an_edge_only_is_refused():
+    from critfric.errors import CaseError
+    from critfric.meshing.cells3d import inline_solid
+
+    nodes = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1], [1, 0, 2]]
+    faces = {"bottom": [[0, 1, 2]]}
+    with pytest.raises(CaseError, match="hinge"):
+        inline_solid(nodes, [[0, 1, 2, 3], [1, 3, 4, 5]], faces, "P1")  # edge 1-3 shared
+    assert inline_solid(nodes[:5], [[0, 1, 2, 3], [1, 2, 3, 4]], faces, "P1").n_cells == 2
+
+
 def test_group_names_with_terminal_escapes_are_refused(tmp_path):
     res, before = _run_file(tmp_path, "body.msh", SEAM_MSH.format(top="\x1b]0;owned\x07", z=0,
                                                                   c=5))

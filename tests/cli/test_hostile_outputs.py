@@ -117,6 +117,26 @@ def test_a_case_file_cannot_send_its_result_out_of_the_working_directory(tmp_pat
         assert loads_case(f.attrs["case_toml"]).output["file"] is None
 
 
+def test_a_case_file_cannot_send_its_result_through_a_linked_folder(tmp_path):
+    """``sub/r.h5`` where sub links to a folder elsewhere: refused, the file there kept."""
+    work, elsewhere = tmp_path / "work", tmp_path / "elsewhere"
+    work.mkdir()
+    elsewhere.mkdir()
+    (elsewhere / "r.h5").write_bytes(b"precious")
+    (work / "sub").symlink_to(elsewhere)
+    (work / "inside").mkdir()
+    (work / "case.toml").write_text('[geometry]\nshape = "square"\n[boundary]\ncontact = '
+                                    '["bottom"]\ndirichlet = ["top"]\n[mesh]\nsize = 0.5\n'
+                                    '[output]\nfile = "sub/r.h5"\n')
+    for force in ((), ("--force",)):
+        _refused(run_cli("solve", "case.toml", *force, cwd=work), "output.file",
+                 "inside the working directory", "symbolic link")
+    assert (elsewhere / "r.h5").read_bytes() == b"precious" and os.listdir(elsewhere) == ["r.h5"]
+    (work / "case.toml").write_text((work / "case.toml").read_text().replace("sub/", "inside/"))
+    assert run_cli("solve", "case.toml", cwd=work).exit_code == 0  # a real folder inside
+    assert (work / "inside" / "r.h5").is_file()
+
+
 def test_figures_into_an_unwritable_place_name_it(tmp_path, solved):
     _refused(run_cli("solutions", "one-triangle", "--friction", "1", "--plot",
                      "/proc/critfric.png"), "/proc/critfric.png", "--plot", "cannot write")
