@@ -169,8 +169,10 @@ class Explorer:
             st = self.state(code)
             crit = st.singular_at(f)
             if crit is not None:
-                singular.append(st)
-                found += self._null_arcs(st, t, z)
+                nulls = self._null_arcs(st, t, z)
+                if nulls:  # a continuum leaves the vertex: a branch point (else no solution
+                    singular.append(st)  # but the vertex lies along the null direction)
+                found += nulls
                 if self.track.parameter == "load":
                     continue
                 lim = st.limit(f)
@@ -273,13 +275,13 @@ class Explorer:
         fresh = [a for a in arcs if not self._walked(a)]
         if not singular and len(arcs) == 2 and len(fresh) == 2:  # one curve through it
             first, then = fresh
-            event = self._event(Way(first.state, -first.d), [then], [], t, ci)
+            event = self._event(Way(first.state, -first.d), [then], [], t, ci, z)
             self.vertices.add(self.key(t, z), event)
             self._run([(ci, first)])
             self._turn(self.curves[ci])
             self._run([(ci, then)])
             return
-        event = self._event(None, arcs, singular, t, ci)
+        event = self._event(None, arcs, singular, t, ci, z)
         self.vertices.add(self.key(t, z), event)
         self._run(self._spread(ci, fresh, t, z, event))
 
@@ -349,7 +351,8 @@ class Explorer:
             others = [a for a in arcs if np.abs(a.key - arc.key).max() > SAME_TOL
                       and not self._retraces(a, arc)]
             fresh = [a for a in others if not self._walked(a)]
-            event = None if known is not None else self._event(arc, others, singular, t, ci)
+            event = None if known is not None else self._event(arc, others, singular, t, ci,
+                                                               z)
             if known is None:
                 self.vertices.add(self.key(t, z), event)
             todo = self._spread(ci, fresh, t, z, event)
@@ -382,9 +385,12 @@ class Explorer:
         for k in at:
             self.hits.setdefault(int(k), []).append(self.key(t, z))
 
-    def _event(self, arc, others, singular, t, ci) -> int | None:
-        """Record the event at a vertex reached by ``arc`` (None: a seed) with the arcs
-        ``others`` leaving it; return its index (None: no event)."""
+    def _event(self, arc, others, singular, t, ci, z) -> int | None:
+        """Record the event at a vertex (t, z) reached by ``arc`` (None: a seed) with the
+        arcs ``others`` leaving it; return its index (None: no event). Only an admissible
+        continuum makes a singular state a branch point; on the zero solution (no load, no
+        reference displacement) every status holds at once, so a change of status there is
+        no kink or fold."""
         states = ([arc.state] if arc else []) + [a.state for a in others]
         if singular:  # a continuum: one branch event for it, whichever end comes first
             nulls = [a.key for a in ([arc] if isinstance(arc, Arc) else []) + others
@@ -401,6 +407,8 @@ class Explorer:
             self.events.append(event)
             self.continua += [(n, len(self.events) - 1) for n in nulls]
             return len(self.events) - 1
+        if not np.any(z) and not np.any(self.track.u0(t)):
+            return None
         if len(others) >= 2 + (arc is None):
             kind = "branch"
         elif len(others) == 1 and arc is not None:

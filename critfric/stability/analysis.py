@@ -201,6 +201,13 @@ def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
                           "Dirichlet edges hold the body")
     scale = _kappa_scale(E, rho, ell, float(red.omega2[modes - 1]), case.source)
     lo, hi = st["friction"] or _default_range(divergence)
+    for direction, inside in (("positive", lambda v: v <= hi), ("negative", lambda v: v >= lo)):
+        value = divergence[direction]
+        if value is not None and not inside(value):  # reported within the range only
+            notes.append(f"the {direction} divergence threshold {value:.10g} (the static "
+                         f"critical coefficient) lies outside the friction range [{lo:g}, "
+                         f"{hi:g}]")
+            divergence[direction] = None
     t3 = time.perf_counter()
     flutter, flutter_kappa, shapes, steps, parts, guesses = {}, {}, {}, {}, [], {}
     for direction, end in (("negative", lo), ("positive", hi)):

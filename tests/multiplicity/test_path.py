@@ -296,3 +296,17 @@ def test_path_refuses_what_it_cannot_do(monkeypatch):
         path_case(grid_case(nx=3, ny=2, height=1.0, skew=0.0, seed=3, parameter="load",
                             span=(0.0, 2.0), friction=0.5).with_overrides(
             {"path.max_pieces": 1}))
+
+
+def test_without_a_load_the_zero_solution_has_no_events():
+    """Four triangles, no load: at 1.3111, 1.8359 and 2.4222 a state is singular, but its
+    null vectors break X <= 0 or Y w <= 0 both ways (no continuum: `solutions` finds U = 0
+    alone there), and the zero solution holds every status at once (no kink)."""
+    case = critfric.load_case("four-triangles")
+    r = path_case(case.with_overrides({"path.range": [1.0, 3.0]}))
+    assert r.events == [] and len(r.curves) == 1
+    enum = Enumerator(case_problem(case, prepare(case).system, friction=0.0))
+    for f in (1.3111111111111113, 1.8358568490953673, 2.4222222222222223):
+        e = enum(f)
+        assert e.count == 1 and not e.branch
+        assert np.abs(e.solutions[0].Ut).max() == 0.0 and np.abs(e.solutions[0].X).max() == 0.0

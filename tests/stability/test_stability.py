@@ -112,6 +112,20 @@ def test_divergence_is_the_static_critical_coefficient(square):
     assert result.first("positive") == "flutter"
 
 
+def test_thresholds_are_reported_within_the_friction_range_only(square):
+    """Divergence at +-1.95 is outside [-0.05, 1]: null, with a note; flutter at +-0.064 is
+    the first instability, and none is followed below 0 on [0, 1]."""
+    case, _ = square
+    near = stability_case(case.with_overrides({"stability.friction": [-0.05, 1.0]}))
+    assert near.divergence == {"positive": None, "negative": None}
+    assert near.flutter["positive"] is not None and near.flutter["negative"] is not None
+    assert near.first("positive") == near.first("negative") == "flutter"
+    assert any("outside the friction range" in n for n in near.notes)
+    up = stability_case(case.with_overrides({"stability.friction": [0.0, 1.0]}))
+    assert up.divergence["negative"] is None and up.flutter["negative"] is None
+    assert up.first("negative") is None
+
+
 def test_flutter_onset_against_an_independent_dense_pencil(square):
     case, result = square
     *_, eigenvalues = _dense_pencil(case)
