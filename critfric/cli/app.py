@@ -22,7 +22,7 @@ from ..case.schema import (
     load_case,
     shipped_cases,
 )
-from ..errors import CaseError
+from ..errors import CaseError, SolverError
 from ..fem.elements import NAMES
 from ..files.catalog import static_table
 from ..files.results import default_output, write_result
@@ -295,6 +295,10 @@ def sweep(
                 say(f"wrote {png}")
         except NothingToDraw as exc:  # every point failed: the report said why
             say(f"critfric: note: no figure: {exc}")
+        if result.failed:  # a batch job must see it: exit 1, every point kept in the file
+            raise SolverError(f"{result.failed} of {len(result.rows)} points failed (the "
+                              f"status of each says why); {out} keeps every point: run the "
+                              "sweep again with other settings for those")
 
 
 @app.command(epilog="\b\nExamples:\n  critfric plot fig5.h5\n  critfric plot inclined_body.h5 --format png,pdf")

@@ -30,6 +30,7 @@ from scipy.optimize import minimize_scalar
 ANGLE_TOL = 1e-6  # degrees: the tolerance of the located angle
 MAX_EVALUATIONS = 200  # solves of one bracket at most
 CEILING = 10.0  # an infinite value counts as CEILING x (1 + the largest finite sample)
+TIE = 1e-9  # samples this close (relative) to the lowest are tied with it
 #: the columns of a minimum (a row of the sweep file's /minima)
 MINIMUM_KEYS = ("nu", "size", "element", "slip_angle", "positive", "r_positive", "bracket_lo",
                 "bracket_hi", "evaluations", "seconds", "status")
@@ -81,8 +82,11 @@ def circle_samples(rows: list[dict]) -> tuple[np.ndarray, np.ndarray, int]:
 
 def bracket(angles: np.ndarray, values: np.ndarray) -> tuple[float, float, float]:
     """(lo, best, hi): the lowest sample and its neighbours on the circle, lo < best < hi
-    (unwrapped around best: lo may be negative, hi above 360)."""
-    k, n = int(np.argmin(values)), len(angles)
+    (unwrapped around best: lo may be negative, hi above 360). Samples within TIE of the
+    lowest (equal by a symmetry of the body, apart from rounding) count as equal: the first
+    angle of them is taken, so that every install brackets the same one."""
+    low = float(np.min(values))
+    k, n = int(np.flatnonzero(values <= low + TIE * abs(low))[0]), len(angles)
     lo = angles[k - 1] if k > 0 else angles[-1] - 360.0
     hi = angles[k + 1] if k < n - 1 else angles[0] + 360.0
     return float(lo), float(angles[k]), float(hi)

@@ -223,6 +223,11 @@ class Sweep:
     minima: list[dict] = field(default_factory=list)
     located: int = 0  # minima located now
 
+    @property
+    def failed(self) -> int:
+        """Points whose solve failed (their status says why)."""
+        return sum(str(r["status"]).startswith("failed") for r in self.rows)
+
     def summary(self) -> dict:
         """The JSON of ``critfric sweep --json``."""
         keys = ("nu", "size", "element", "h", "n_dofs", "n_contact", "positive", "negative",

@@ -14,7 +14,7 @@ import critfric
 from critfric.errors import CaseError
 from critfric.files.sweepfile import read_sweep
 from critfric.solve import prepare, solve_prepared
-from critfric.sweep.directions import circle_samples, locate
+from critfric.sweep.directions import bracket, circle_samples, locate
 from critfric.sweep.grid import parse_slip_angles
 from critfric.sweep.runner import make_grid, run_sweep
 
@@ -178,3 +178,17 @@ def test_an_interrupted_angle_sweep_resumes_with_only_what_is_missing(box, tmp_p
         assert (a["nu"], a["status"]) == (b["nu"], b["status"]) == (a["nu"], "ok")
         assert a["positive"] == pytest.approx(b["positive"], rel=1e-10, abs=0)
         assert a["slip_angle"] == pytest.approx(b["slip_angle"], abs=1e-5)
+
+
+def test_samples_tied_by_symmetry_bracket_the_first_angle():
+    """Minima equal but for rounding (a symmetric body) are the same minimum on every
+    install: the first angle's bracket is taken, whichever rounds lower (the two installs
+    had located 135 and 225 degrees)."""
+    angles = np.arange(0.0, 360.0, 30.0)
+    values = 2.0 + np.abs(angles - 180) * 1e-3
+    values[[4, 7]] = 1.9092791928, 1.9092791928 * (1 - 3e-16)
+    assert bracket(angles, values) == (90.0, 120.0, 150.0)
+    values[[4, 7]] = values[[7, 4]]
+    assert bracket(angles, values) == (90.0, 120.0, 150.0)
+    values[7] = 1.9092791928 * (1 - 1e-6)  # a real difference wins
+    assert bracket(angles, values) == (180.0, 210.0, 240.0)
