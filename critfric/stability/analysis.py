@@ -235,8 +235,10 @@ def _stability(prep: Prepared, case: Case, plan, threads: contextlib.ExitStack
     for (direction, guess), found in zip(guesses.items(), founds):
         if abs(found.friction - guess.friction) > 1e-3 * abs(guess.friction):
             warnings.append(f"the {direction} flutter onset moved from {guess.friction:.6g} "
-                            f"(reduced model) to {found.friction:.6g} on the full pencil; "
-                            "check with more --steps")
+                            f"(reduced model of {modes} modes) to {found.friction:.6g} on the "
+                            "full pencil, the value given; check with more --modes, with "
+                            "which the two should meet (if they do not, the full pencil's "
+                            "may be another coalescence)")
         flutter[direction] = float(found.friction)
         flutter_kappa[direction] = float(found.kappa) * scale
         shapes[direction] = pencil.shape_xy(found.right)

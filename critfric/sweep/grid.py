@@ -79,8 +79,17 @@ class Grid:
 
 def _float(text: str, what: str, within: str | None = None) -> float:
     """A plain finite number (:func:`critfric.case.numbers.plain_number`), part of the option
-    value ``within``."""
-    return plain_number(text, what, allowed=FINITE_NUMBER, within=within)
+    value ``within``; -0 is 0."""
+    return plain_number(text, what, allowed=FINITE_NUMBER, within=within) + 0.0
+
+
+def _items(text: str, what: str) -> list[str]:
+    """The comma-separated items of an option's value, none of them empty."""
+    items = [v.strip() for v in text.split(",")]
+    if not all(items):
+        raise CaseError(f"got {text!r}: an empty item; allowed: values separated by single "
+                        "commas", key=what)
+    return items
 
 
 def _range(text: str, key: str, allowed: str, default: int) -> tuple[float, float, int]:
@@ -121,7 +130,7 @@ def parse_nu(text: str) -> tuple[list[float], list[str]]:
     if text.count(",") >= MAX_POINTS:
         raise CaseError(f"got {text.count(',') + 1} values; allowed: at most {MAX_POINTS}",
                         key="--nu")
-    values = [_float(v, "--nu", text) for v in text.split(",") if v.strip()]
+    values = [_float(v, "--nu", text) for v in _items(text, "--nu")]
     bad = [v for v in values if not 0.0 <= v < 0.5]
     if not values or bad:
         raise CaseError(f"got {text!r}; allowed: {allowed}", key="--nu")
@@ -145,7 +154,7 @@ def parse_slip_angles(text: str) -> tuple[list[float], list[str]]:
         if text.count(",") >= MAX_POINTS:
             raise CaseError(f"got {text.count(',') + 1} values; allowed: at most {MAX_POINTS}",
                             key="--slip-angle")
-        values = sorted({_float(v, "--slip-angle", text) for v in text.split(",") if v.strip()})
+        values = sorted({_float(v, "--slip-angle", text) for v in _items(text, "--slip-angle")})
         if not values or not all(lo_ok <= v <= hi_ok for v in values):
             raise CaseError(f"got {text!r}; allowed: {allowed}", key="--slip-angle")
     turns = {round(v % 180.0, 9) % 180.0 for v in values}
@@ -163,7 +172,7 @@ def parse_sizes(text: str) -> list[float]:
     if text.count(",") >= MAX_POINTS:
         raise CaseError(f"got {text.count(',') + 1} sizes; allowed: at most {MAX_POINTS}",
                         key="--size")
-    values = [_float(v, "--size", text) for v in text.split(",") if v.strip()]
+    values = [_float(v, "--size", text) for v in _items(text, "--size")]
     if not values or any(v <= 0 for v in values):
         raise CaseError(f"got {text!r}; allowed: positive mesh sizes h1,h2,...", key="--size")
     return sorted(set(values), reverse=True)
@@ -171,7 +180,7 @@ def parse_sizes(text: str) -> list[float]:
 
 def parse_elements(text: str) -> list[str]:
     """``P1,P2,...``: distinct element names."""
-    values = [v.strip() for v in text.split(",") if v.strip()]
+    values = _items(text, "--element")
     bad = [v for v in values if v not in NAMES]
     if not values or bad:
         raise CaseError(f"got {text!r}; allowed: a comma list of " + ", ".join(NAMES),

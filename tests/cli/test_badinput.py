@@ -347,6 +347,10 @@ CATALOGUE = [
          "second load L1"),
     # --- sweeps, plots and exports
     Bad("sweep nu outside [0, 0.5)", {}, ("sweep", "--nu", "0.7"), 2, ("--nu", "0.7", "0.5")),
+    Bad("sweep nu list with an empty item", {}, ("sweep", "--nu", "0.1,,0.2"), 2,
+        ("--nu", "empty item")),
+    Bad("sweep size list ending in a comma", {}, ("sweep", "--size", "0.1,"), 2,
+        ("--size", "empty item")),
     Bad("sweep nu range past 0.5", {}, ("sweep", "--nu", "0.6:0.8"), 2, ("--nu", "0.6:0.8")),
     Bad("sweep nu range not numbers", {}, ("sweep", "--nu", "a:b"), 2, ("--nu", "'a'")),
     Bad("sweep nu range of one point", {}, ("sweep", "--nu", "0.1:0.3:1"), 2, ("--nu", ">= 2")),
