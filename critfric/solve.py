@@ -19,7 +19,13 @@ import numpy as np
 from .case.schema import Case, as_case
 from .errors import CaseError, SolverError
 from .fem.assembly import assemble_elasticity, assemble_stiffness, lame
-from .fem.contact import ContactSystem, check_held, contact_layout, contact_system
+from .fem.contact import (
+    ContactSystem,
+    check_held,
+    contact_layout,
+    contact_system,
+    skewed_contact_cells,
+)
 from .fem.contact3d import contact_layout3d, contact_system3d, slip_directions
 from .fem.mesh import Mesh
 from .guards import check_dofs
@@ -42,6 +48,7 @@ class Prepared:
     plan: Any = field(default=None, repr=False)  # eigen.plan_dense of the stiffness, used once
     parts: Any = field(default=None, repr=False)  # 3D: (K_lam, K_G) in xyz, to turn the slip
     slip: Any = None  # 3D: the slip directions' inputs the system was made with
+    warnings: list[str] = field(default_factory=list)  # of the mesh, given with every result
 
     def __repr__(self) -> str:
         return (f"Prepared({self.mesh!r}, {self.system.n_dofs} DOFs, "
@@ -227,7 +234,8 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
                                                     if single is not None else {}),
                     plan=plan[0] if plan else None,
                     parts=(K_lam, K_G) if mesh.dim == 3 else None,
-                    slip=_slip_inputs(case) if mesh.dim == 3 else None)
+                    slip=_slip_inputs(case) if mesh.dim == 3 else None,
+                    warnings=[w for w in [skewed_contact_cells(mesh, system.nodes)] if w])
 
 
 def _slip_inputs(case: Case):
@@ -359,7 +367,7 @@ def _solve_prepared(prep: Prepared, case: Case, plans: list, _release: bool,
         n_dofs=system.n_dofs, nu=nu, E=E, element=case.mesh["element"],
         size=case.mesh["size"], h=prep.mesh.diameter, solver=spec.method,
         applications=spec.applications, n_infinite=spec.n_infinite,
-        seconds=sum(timings.values()), timings=timings, warnings=spec.warnings,
+        seconds=sum(timings.values()), timings=timings, warnings=prep.warnings + spec.warnings,
         notes=spec.notes, backend=spec.backend, complete=spec.complete,
         r=spec.r if system.dim == 3 else None, law=s["direction_law"],
         slip_angle=s["slip_angle"], slip=system.slip,

@@ -69,3 +69,31 @@ def test_a_sweep_is_a_table(tmp_path):
     assert isinstance(frame, pd.DataFrame) and list(frame["nu"]) == [0.1, 0.3]
     assert frame["positive"].iloc[1] == pytest.approx(1.8358568491, rel=1e-9)
     assert "2 points" in repr(sweep)
+
+
+L_SHAPE = """[geometry]
+shape = "polygon"
+vertices = [[0.0, 0.0], [2.0, 0.0], [2.0, 0.5], [0.8, 0.5], [0.8, 1.5], [0.0, 1.5]]
+edge_names = ["bottom", "r1", "step", "r2", "top", "left"]
+[boundary]
+contact = ["bottom"]
+dirichlet = ["top"]
+[mesh]
+element = "{element}"
+size = 0.05
+"""
+
+
+def test_skewed_cells_along_the_contact_edge_are_a_warning():
+    """gmsh's quads of this L-shape fan out at up to 150 degrees on Gamma_C: mesh-scale modes
+    give real eigenvalues from 1.92 where the body's coefficient is about 2.33 (P1 on the
+    same body: cells below 90 degrees there, no warning, 2.31)."""
+    quads = critfric.solve_case(loads_case(L_SHAPE.format(element="Q1")))
+    assert quads.critical < 2.0
+    (warning,) = [w for w in quads.warnings if "Gamma_C have corners" in w]
+    assert "up to 150 degrees" in warning
+    triangles = critfric.solve_case(loads_case(L_SHAPE.format(element="P1")))
+    assert not any("Gamma_C have corners" in w for w in triangles.warnings)
+    assert 2.25 < triangles.critical < 2.35
+    for name in ("unit-square", "inclined-body", "one-triangle", "four-triangles"):
+        assert not critfric.solve_case(name).warnings
