@@ -70,6 +70,7 @@ def _constants() -> dict[str, str]:
         "residual_tol": f"{eigen.RESIDUAL_TOL:g}",
         "fit_sizes": str(x.FIT_SIZES),
         "min_order": f"{x.MIN_ORDER:g}",
+        "weight_power": f"{x.WEIGHT_POWER:g}",
         "safety": f"{x.SAFETY:g}",
         "safety_few": f"{x.SAFETY_FEW:g}",
         "max_relative_error": f"{100 * x.MAX_RELATIVE_ERROR:g}%",
