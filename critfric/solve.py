@@ -19,15 +19,10 @@ import numpy as np
 from .case.schema import Case, as_case
 from .errors import CaseError, SolverError
 from .fem.assembly import assemble_elasticity, assemble_stiffness, lame
-from .fem.contact import (
-    ContactSystem,
-    check_held,
-    contact_layout,
-    contact_system,
-    skewed_contact_cells,
-)
+from .fem.contact import ContactSystem, check_held, contact_layout, contact_system
 from .fem.contact3d import contact_layout3d, contact_system3d, slip_directions
 from .fem.mesh import Mesh
+from .fem.quality import skewed_contact_cells
 from .guards import check_dofs
 from .meshing.from_case import make_mesh
 from .solvers import eigen

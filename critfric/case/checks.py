@@ -52,7 +52,9 @@ def number(lo=-math.inf, hi=math.inf, *, lo_open=False, hi_open=False, magnitude
             right = ")" if hi_open else "]"
             size = "" if magnitude is None else (f" of magnitude in [{magnitude[0]:g}, "
                                                  f"{magnitude[1]:g}]")
-            raise Bad(f"a finite number in {left}{lo:g}, {hi:g}{right}{size}")
+            span = "" if lo == -math.inf and hi == math.inf else \
+                f" in {left}{lo:g}, {hi:g}{right}"
+            raise Bad(f"a finite number{span}{size}")
         return value
 
     return check

@@ -59,7 +59,7 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
         return CaseError(f"{where}: {what}; not a valid critfric {kind} file (was it "
                          "written by critfric, and is it whole?)", file=str(path))
 
-    check_storage(f, bad)
+    check_storage(f, bad, size)
     version = f.attrs.get("schema_version")
     if not _attr_ok(version, "int") or not 1 <= int(version) <= NEWEST_VERSION:
         raise bad("attribute 'schema_version'", f"{version!r}; this critfric reads versions 1 "

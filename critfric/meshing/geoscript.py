@@ -89,7 +89,15 @@ RESERVED = frozenset("""
     Unique UnsplitWindow UpperCase Using Variables View Views Volume Warning Wedge Wire
     all
 """.split())  # noqa: SIM905 (a word list)
-MAX_STRING = 1000  # gmsh's lexer cuts a string at 1023 characters and reads the rest as code
+MAX_STRING = 1000  # gmsh's lexer cuts a string at 1023 bytes and reads the rest as code
+# gmsh skips a block it does not run (If, For, Macro) with a scanner of its own, which at each
+# E, I, F or R (the first letters of If, EndIf, Else, ElseIf, For, EndFor, Return) reads on
+# raw characters: the one right after such a letter is lost when no word matches, and the
+# four after a nested If or For are taken whole. A quote or a / there would start or end a
+# string or comment where this check does not: refused.
+SKIP_LETTERS = "EIFR"
+SKIP_WORDS, SKIP_WINDOW = ("If", "For"), 4
+UNSAFE_NEAR_SKIP = "\"'/"
 
 
 _RUNS = "runs a shell command"
@@ -141,8 +149,15 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
             refuse(offset, value, "not part of the geometry language")
         if kind == "string" and (len(value) < 2 or value[-1] != value[0]):
             refuse(offset, value[:1], "a string that is not closed")
-        elif kind == "string" and len(value) - 2 > MAX_STRING:
-            refuse(offset, value[:1], f"a string of more than {MAX_STRING} characters")
+        elif kind == "string" and len(value[1:-1].encode()) > MAX_STRING:
+            refuse(offset, value[:1], f"a string of more than {MAX_STRING} bytes")
+        if kind == "name":
+            end = offset + len(value)
+            window = text[end:end + (SKIP_WINDOW if value in SKIP_WORDS else 1)]
+            if value[-1] in SKIP_LETTERS and text[end:end + 1] in tuple(UNSAFE_NEAR_SKIP) \
+                    or value in SKIP_WORDS and any(c in UNSAFE_NEAR_SKIP for c in window):
+                refuse(end, f"{value}{window}", "a quote or / right after a word where gmsh "
+                       "skipping a block reads the characters raw (add a space)")
         if kind != "name":
             continue
         before = tokens[i - 1][1] if i else ""

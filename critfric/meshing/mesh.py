@@ -64,6 +64,7 @@ def _gmsh_session():
             gmsh.initialize(argv=["critfric"], readConfigFiles=False, interruptible=False)
         except TypeError:  # older gmsh without the keyword
             gmsh.initialize(argv=["critfric"], readConfigFiles=False)
+        _python_signals()
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("General.Verbosity", 1)
@@ -74,10 +75,25 @@ def _gmsh_session():
     finally:
         if owner:
             gmsh.finalize()
+            _python_signals()
         else:
             gmsh.model.remove()
         for lib, count in zip(openmp.lib_controllers, counts):
             lib.set_num_threads(count)
+
+
+def _python_signals() -> None:
+    """Python's own SIGINT and SIGTERM handlers put back at the C level: gmsh installs
+    handlers of its own (SIGTERM then killed the process outright, with no message, the
+    output lock left behind), while ``signal.getsignal`` still names Python's."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        for number in (signal.SIGINT, signal.SIGTERM):
+            handler = signal.getsignal(number)
+            if handler is not None:
+                signal.signal(number, handler)
 
 
 def build_mesh(poly: Polygon, *, size: float, element: str, structured: bool = False,

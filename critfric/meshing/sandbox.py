@@ -69,9 +69,14 @@ def run_in_child(path: Path, data: bytes, job: dict, *, entry: str,
         (work / "job.json").write_text(json.dumps({**job, "input": name, "shown": path.name}))
         env = {"PATH": os.defpath, "HOME": tmp, "TMPDIR": tmp, "OMP_NUM_THREADS": "1",
                "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "LC_ALL": "C"}
-        code = ("import sys; sys.path.insert(0, sys.argv[1]); from critfric.meshing.sandbox "
-                "import child_main; child_main(sys.argv[2], *map(int, sys.argv[3:5]))")
-        package_root = str(Path(__file__).resolve().parents[2])
+        code = ("import sys, json; sys.path[:0] = json.loads(sys.argv[1]); from "
+                "critfric.meshing.sandbox import child_main; child_main(sys.argv[2], "
+                "*map(int, sys.argv[3:5]))")
+        # -I leaves out PYTHONPATH and the working directory: the child imports critfric,
+        # numpy and gmsh from where this process did (its absolute import path)
+        package_root = json.dumps(list(dict.fromkeys(
+            [str(Path(__file__).resolve().parents[2])]
+            + [p for p in sys.path if os.path.isabs(p) and os.path.isdir(p)])))
         # its own session: a Ctrl-C reaches critfric, which ends it (no preexec_fn: Python
         # code between fork and exec can deadlock on a lock another thread held)
         proc = subprocess.Popen(

@@ -262,3 +262,19 @@ def test_a_file_size_limit_in_a_parallel_sweep_is_exit_1_and_one_line(tmp_path):
     assert len(kept) == int(found[1]) <= 11  # the limits, at the latest, find no room
     assert all(r["status"] in ("ok", "no-real-eigenvalue") for r in kept)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.h5"]
+
+
+def test_sigterm_reaches_python_during_and_after_a_gmsh_session():
+    """gmsh installs C signal handlers of its own: SIGTERM killed critfric outright (no
+    message, its output lock left behind) once a mesh had been made."""
+    code = ("import os, signal, time\n"
+            "from critfric.meshing.mesh import _gmsh_session\n"
+            "seen = []\n"
+            "signal.signal(signal.SIGTERM, lambda *a: seen.append('x'))\n"
+            "with _gmsh_session():\n"
+            "    os.kill(os.getpid(), signal.SIGTERM); time.sleep(0.2)\n"
+            "os.kill(os.getpid(), signal.SIGTERM); time.sleep(0.2)\n"
+            "print(len(seen))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=False, timeout=120)
+    assert out.returncode == 0 and out.stdout.split() == ["2"], (out.returncode, out.stderr)
