@@ -129,6 +129,12 @@ def run_cli(*args, cwd: Path | None = None):
         os.chdir(here)
 
 
+def run_python(code: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    """``code`` run by this interpreter in a fresh process (its own signals, its own MKL)."""
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=False, timeout=timeout)
+
+
 def run_line(command: str, work: Path, env: dict, *, shell: bool = False) -> tuple[int, str]:
     """Run one shell line in ``work``: a `critfric` line in this process (typer's CliRunner;
     a start-up of the command saved per line) with its `> file` redirection and its globs,

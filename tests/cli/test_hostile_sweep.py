@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
-from helpers import CASES, REPO, run_cli
+from helpers import CASES, REPO, run_cli, run_python
 
 from critfric.errors import CaseError
 from critfric.files import sweepfile
@@ -275,6 +275,5 @@ def test_sigterm_reaches_python_during_and_after_a_gmsh_session():
             "    os.kill(os.getpid(), signal.SIGTERM); time.sleep(0.2)\n"
             "os.kill(os.getpid(), signal.SIGTERM); time.sleep(0.2)\n"
             "print(len(seen))\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=False, timeout=120)
+    out = run_python(code)
     assert out.returncode == 0 and out.stdout.split() == ["2"], (out.returncode, out.stderr)

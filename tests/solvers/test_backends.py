@@ -3,15 +3,13 @@ independent dense formulation, for every contact state (stuck, free and slipping
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import time
 
 import numpy as np
 import pytest
 import scipy.linalg as la
 import scipy.sparse as sp
-from helpers import CASES, square_case
+from helpers import CASES, run_python, square_case
 from typer.testing import CliRunner
 
 import critfric
@@ -407,8 +405,7 @@ def test_a_released_factor_does_not_wait_for_the_mkl_thread(monkeypatch):
         "K = sp.diags([2.0] * 30, format='csr')\n"
         "kept = linsolve.factorize(K, symmetric=True, backend='pardiso')\n"
         "print('exit', flush=True)\n")
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         check=False, timeout=60)
+    out = run_python(script, timeout=60)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["exit", "released"]
 
