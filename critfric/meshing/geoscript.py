@@ -218,7 +218,7 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
             continue
         refuse(offset, value, "not a geometry or meshing statement critfric allows, nor a "
                "variable assigned before")
-    return found
+    return found + _jump_refusals(text, tokens)
 
 
 def _redirects(tokens, i: int) -> bool:
@@ -254,3 +254,51 @@ def _assigns(tokens, i: int) -> bool:
         return True
     return j < len(tokens) and tokens[j][1] == "=" and (
         j + 1 >= len(tokens) or tokens[j + 1][1] != "=")
+
+
+MAX_JUMP_LINE = 4000  # gmsh reads a line in chunks of 8192 bytes or more
+JUMPS = ("For", "EndFor", "Macro", "Function", "Call", "Return")
+
+
+def _jump_refusals(text: str, tokens: list) -> list[tuple[int, str, str]]:
+    """gmsh reads a script a line at a time; a For header and a Macro (Function) name keep
+    where the next line starts, and EndFor, Call and Return jump back there, or to the line
+    after the Call, without dropping the rest of the line being read: that rest is read
+    before another line than in the file (a /* comment or a string then spans other text, a
+    statement gets other words). So each of them must end its line (a // comment may follow),
+    on a line short enough to be read whole."""
+    newlines = [m.start() for m in re.finditer("\n", text)]
+    found = []
+    after = "text after it on its line (gmsh re-reads lines there: put it at the end of its line)"
+    long = f"on a line of more than {MAX_JUMP_LINE} bytes (gmsh reads such a line in pieces)"
+
+    def line(at: int) -> tuple[int, int]:
+        stop = text.find("\n", at)
+        return text.rfind("\n", 0, at) + 1, len(text) if stop < 0 else stop
+
+    for i, (kind, value, offset) in enumerate(tokens):
+        if kind != "name" or value not in JUMPS:
+            continue
+        j = i  # the construct's last token: For's closing bracket, the name, Call's ';'
+        if value in ("Macro", "Function"):
+            j = i + 1
+        elif value in ("For", "Call"):
+            depth, j = 0, i + 1
+            while j < len(tokens):
+                word = tokens[j][1]
+                depth += {"(": 1, "{": 1, ")": -1, "}": -1}.get(word, 0)
+                if (value == "Call" and word == ";" or value == "For" and depth == 0
+                        and word in ")}"):
+                    break
+                j += 1
+        if j >= len(tokens):
+            continue  # gmsh refuses the unfinished construct itself
+        end = tokens[j][2] + len(tokens[j][1])
+        rest = text[end:line(end)[1]].lstrip(" \t\r\f")
+        line_no = bisect.bisect_right(newlines, offset) + 1
+        if rest and not rest.startswith("//"):
+            found.append((line_no, value, after))
+        start, stop = line(offset)
+        if len(text[start:max(stop, line(end)[1])].encode()) > MAX_JUMP_LINE:
+            found.append((line_no, value, long))
+    return found

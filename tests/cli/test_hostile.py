@@ -75,6 +75,23 @@ LEXER_ATTACKS = {  # a script whose words the check must split exactly as gmsh d
                                         '\nEndIf'), "E/"),
     "a quote taken by a nested If": (('If (0)\nIf ("x" EndIf\nSystemCall "touch {p}";\n'
                                       'EndIf'), "If ("),
+    # For and Macro keep where the next line starts, EndFor, Call and Return jump there but
+    # first read the rest of their line: a /* left there, or half a statement, met other text
+    "a comment left open after EndFor": (('For i In {{1:2}}\n// */ SystemCall "touch {p}";\n'
+                                          'EndFor /*\n*/'), "EndFor (text after it"),
+    "a comment left open after Call": (('Macro m\n// */ SystemCall "touch {p}";\nReturn\n'
+                                        'Call m; /*\n// */'), "Call (text after it"),
+    "a comment left open after Return": (('Macro m\nx = 1;\nReturn /*\n*/\nCall m;\n'
+                                          '// */ SystemCall "touch {p}";'), "Return (text"),
+    "a comment opened after a For header": (('For i In {{1:2}} /*\nSystemCall "touch {p}"; '
+                                             '// */\nEndFor'), "For (text after it"),
+    "a comment opened after a Macro name": (('Macro m /*\nSystemCall "touch {p}"; // */\n'
+                                             'Return\nCall m;'), "Macro (text after it"),
+    "a statement split around a loop": (('f = 0; f = "{p}";\nFor i In {{1:2}} x = 1\n> f;\n'
+                                         'EndFor Printf("written")\n;'), "For (text after"),
+    "a For header on a long line": ('For i In {{1:2}} //' + " " * 20000
+                                    + 'SystemCall "touch {p}";\nx = i;\nEndFor',
+                                    "more than 4000 bytes"),
 }
 
 
