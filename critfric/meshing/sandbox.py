@@ -71,7 +71,7 @@ def run_in_child(path: Path, data: bytes, job: dict, *, entry: str,
                "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "LC_ALL": "C"}
         code = ("import sys, json; sys.path[:0] = json.loads(sys.argv[1]); from "
                 "critfric.meshing.sandbox import child_main; child_main(sys.argv[2], "
-                "*map(int, sys.argv[3:5]))")
+                "*map(int, sys.argv[3:6]))")
         # -I leaves out PYTHONPATH and the working directory: the child imports critfric,
         # numpy and gmsh from where this process did (its absolute import path)
         package_root = json.dumps(list(dict.fromkeys(
@@ -81,7 +81,7 @@ def run_in_child(path: Path, data: bytes, job: dict, *, entry: str,
         # code between fork and exec can deadlock on a lock another thread held)
         proc = subprocess.Popen(
             [sys.executable, "-I", "-c", code, package_root, entry, str(CPU_SECONDS),
-             str(_space(job, data))],
+             str(_space(job, data)), str(int(bool(job.get("trust"))))],
             cwd=tmp, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
             stderr=subprocess.PIPE, start_new_session=True)
         try:
@@ -225,16 +225,21 @@ def _space(job: dict, data: bytes) -> int:
     return max(int(available_memory()), MIN_ADDRESS_SPACE)
 
 
-def _limits(cpu: int, space: int) -> None:
+def _limits(cpu: int, space: int, spawn: bool = False) -> None:
     """The child's limits (``cpu`` seconds, ``space`` bytes of address space, as the parent
-    decided them), set by the child itself before it reads anything of the job (POSIX;
-    elsewhere only the parent's wall-clock and memory watch apply)."""
+    decided them; no new process unless ``spawn``), set by the child itself before it reads
+    anything of the job (POSIX; elsewhere only the parent's wall-clock and memory watch
+    apply)."""
     try:
         import resource
     except ImportError:
         return
+    # no new process either (a second wall behind the .geo allow-list: gmsh's SystemCall
+    # is system(), which cannot fork then; the kernel does not hold root to this limit)
+    nproc = [] if spawn else [(resource.RLIMIT_NPROC, 0)]
     for limit, value in ((resource.RLIMIT_CPU, cpu), (resource.RLIMIT_AS, space),
-                         (resource.RLIMIT_FSIZE, OUTPUT_BYTES), (resource.RLIMIT_CORE, 0)):
+                         (resource.RLIMIT_FSIZE, OUTPUT_BYTES), (resource.RLIMIT_CORE, 0),
+                         *nproc):
         hard = resource.getrlimit(limit)[1]
         value = value if hard == resource.RLIM_INFINITY else min(value, hard)
         resource.setrlimit(limit, (value, hard))
@@ -290,12 +295,12 @@ def _mesh_from(result: Path, path: Path) -> Mesh:
 
 
 # ------------------------------------------------------------------------------- the child
-def child_main(entry: str, cpu: int, space: int) -> None:
-    """The child process (cwd: the private directory): within its limits (:func:`_limits`),
-    ``entry`` makes the Mesh."""
+def child_main(entry: str, cpu: int, space: int, trusted: int = 0) -> None:
+    """The child process (cwd: the private directory): within its limits (:func:`_limits`;
+    ``trusted``: a script the user trusts may start programs), ``entry`` makes the Mesh."""
     import importlib
 
-    _limits(cpu, space)
+    _limits(cpu, space, spawn=bool(trusted))
     work = Path.cwd()
     try:
         job = json.loads((work / "job.json").read_text())

@@ -4,6 +4,7 @@ file created or changed, and no hang. The catalogue of merely wrong inputs is te
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 
@@ -786,3 +787,17 @@ def test_a_sliver_cell_is_named_not_blamed_on_the_dirichlet_data(tmp_path):
     res = run_cli("solve", case, "-o", tmp_path / "r.h5")
     _refused(res, tmp_path, before, "geometry.triangles", "sliver", "cell 0")
     assert "Dirichlet" not in res.output
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0,
+                    reason="the kernel does not hold root to RLIMIT_NPROC")
+def test_the_meshing_child_cannot_start_a_program():
+    """The second wall behind the .geo allow-list: an untrusted script's child may not fork
+    (gmsh's SystemCall is system()); a trusted one may."""
+    from helpers import run_python
+
+    code = ("import os, sys\nfrom critfric.meshing import sandbox\n"
+            "sandbox._limits(60, 8 << 30, spawn={spawn})\n"
+            "print(os.system('true'))\n")
+    assert run_python(code.format(spawn=False)).stdout.split() != ["0"]
+    assert run_python(code.format(spawn=True)).stdout.split() == ["0"]
