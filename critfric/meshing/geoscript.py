@@ -22,7 +22,7 @@ from __future__ import annotations
 import bisect
 import re
 
-STATEMENTS = frozenset(["Point", "Line", "Circle", "Ellipse", "Spline", "BSpline", "Bezier", "Curve", "Loop", "Surface", "Plane", "Physical", "Transfinite", "Recombine", "Characteristic", "Length", "MeshSize", "Mesh", "Field", "Background", "Coherence", "Delete", "Compound", "Translate", "Rotate", "Symmetry", "Dilate", "Duplicata", "Extrude", "Layers", "Recombine", "Boundary", "CombinedBoundary", "For", "In", "EndFor", "If", "ElseIf", "Else", "EndIf", "Using", "Progression", "Bump", "Beta", "Left", "Right", "Alternate", "AlternateLeft", "AlternateRight", "Smoothing", "Reverse", "Reverse", "Rectangle", "Disk", "Circle", "BooleanUnion", "BooleanDifference", "BooleanIntersection", "BooleanFragments", "SetFactory", "Hide", "Show", "Geometry", "Color", "Macro", "Function", "Call", "Return", "Printf", "Volume", "Box", "Block", "Sphere", "Cylinder", "Cone", "Torus", "Wedge", "Ellipsoid", "Ellipsis", "CatmullRom", "Nurbs", "Knots", "Order", "Ruled", "ThruSections", "ThickSolid", "Wire", "Fillet", "Chamfer", "Affine", "Periodic", "Recursive"])
+STATEMENTS = frozenset(["Point", "Line", "Circle", "Ellipse", "Spline", "BSpline", "Bezier", "Curve", "Loop", "Surface", "Plane", "Physical", "Transfinite", "Recombine", "Characteristic", "Length", "MeshSize", "Mesh", "Field", "Background", "Coherence", "Delete", "Compound", "Translate", "Rotate", "Symmetry", "Dilate", "Duplicata", "Extrude", "Layers", "Recombine", "Boundary", "CombinedBoundary", "For", "In", "EndFor", "If", "ElseIf", "Else", "EndIf", "Using", "Progression", "Bump", "Beta", "Left", "Right", "Alternate", "AlternateLeft", "AlternateRight", "Smoothing", "Reverse", "Reverse", "Rectangle", "Disk", "Circle", "BooleanUnion", "BooleanDifference", "BooleanIntersection", "BooleanFragments", "SetFactory", "Hide", "Show", "Geometry", "Color", "Macro", "Function", "Call", "Return", "Volume", "Box", "Block", "Sphere", "Cylinder", "Cone", "Torus", "Wedge", "Ellipsoid", "Ellipsis", "CatmullRom", "Nurbs", "Knots", "Order", "Ruled", "ThruSections", "ThickSolid", "Wire", "Fillet", "Chamfer", "Affine", "Periodic", "Recursive"])
 FUNCTIONS = frozenset(["Sqrt", "Sin", "Cos", "Tan", "Asin", "Acos", "Atan", "Atan2", "Sinh", "Cosh", "Tanh", "Exp", "Log", "Log10", "Fabs", "Abs", "Floor", "Ceil", "Round", "Fmod", "Modulo", "Hypot", "Rand", "Min", "Max", "Pi", "Sign", "Step", "ArcCos", "ArcSin", "ArcTan", "ArcTan2", "LinSpace", "LogSpace", "newp", "newl", "news", "newll", "newc", "newreg", "newf", "newcl", "newsl", "newv", "newvl"])
 OPTIONS = {
     "Mesh": frozenset(["CharacteristicLengthMax", "CharacteristicLengthMin", "CharacteristicLengthFactor", "CharacteristicLengthFromPoints", "CharacteristicLengthFromCurvature", "CharacteristicLengthExtendFromBoundary", "MeshSizeMax", "MeshSizeMin", "MeshSizeFactor", "MeshSizeFromPoints", "MeshSizeFromCurvature", "MeshSizeExtendFromBoundary", "MeshSizeFromParametricPoints", "Algorithm", "RecombineAll", "RecombinationAlgorithm", "Smoothing", "ElementOrder", "SecondOrderLinear", "SecondOrderIncomplete", "Optimize", "OptimizeNetgen", "OptimizeThreshold", "RandomFactor", "RandomSeed", "AngleToleranceFacetOverlap", "SubdivisionAlgorithm", "TransfiniteTri", "MinimumCirclePoints", "MinimumCurvePoints"]),
@@ -89,7 +89,10 @@ RESERVED = frozenset("""
     Unique UnsplitWindow UpperCase Using Variables View Views Volume Warning Wedge Wire
     all
 """.split())  # noqa: SIM905 (a word list)
-MAX_STRING = 1000  # gmsh's lexer cuts a string at 1023 bytes and reads the rest as code
+# gmsh's lexer cuts a string at 1023 bytes and reads the rest as code, and gmsh formats its
+# messages (an unknown variable, a command) into 1024-byte buffers on the stack, unchecked:
+# names and strings are kept well below (the longest in gmsh's tutorials: 22 and 109)
+MAX_STRING, MAX_NAME = 256, 128
 # gmsh skips a block it does not run (If, For, Macro) with a scanner of its own, which at each
 # E, I, F or R (the first letters of If, EndIf, Else, ElseIf, For, EndFor, Return) reads on
 # raw characters: the one right after such a letter is lost when no word matches, and the
@@ -115,6 +118,8 @@ KNOWN = {
     "StringToName": "makes a command name from a string (it can hide any command)",
     "S2N": "makes a command name from a string (it can hide any command)",
     "Exit": "ends the program running it (critfric itself)", "Sleep": "pauses the program",
+    "Printf": "prints (nothing critfric shows), through a format gmsh does not check: a "
+    "long one overflows its buffers",
 }
 
 
@@ -144,6 +149,9 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
 
     if "\0" in text:  # gmsh ends a string or comment there and reads on as statements
         refuse(text.index("\0"), "NUL", "a NUL character (not text)")
+    bare = re.search("\r(?!\n)", text)  # gmsh's reader ends a line there, a // comment not
+    if bare:
+        refuse(bare.start(), "CR", "a carriage return without a line feed")
     for i, (kind, value, offset) in enumerate(tokens):
         if kind == "other" and value in "$@\\`":
             refuse(offset, value, "not part of the geometry language")
@@ -159,6 +167,9 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
                 refuse(end, f"{value}{window}", "a quote or / right after a word where gmsh "
                        "skipping a block reads the characters raw (add a space)")
         if kind != "name":
+            continue
+        if len(value) > MAX_NAME:
+            refuse(offset, value[:20] + "...", f"a name of more than {MAX_NAME} characters")
             continue
         before = tokens[i - 1][1] if i else ""
         after = tokens[i + 1][1] if i + 1 < len(tokens) else ""
@@ -197,9 +208,6 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
         if i >= 2 and tokens[i - 1][1] == "=" and tokens[i - 2][1] == "]" \
                 and value in FIELD_TYPES:
             continue  # the type of a field, checked above
-        if value == "Printf" and _redirects(tokens, i):
-            refuse(offset, value, "writes a file (Printf ... > file)")
-            continue
         if value in KNOWN and value not in defined:
             refuse(offset, value, KNOWN[value])
             continue
@@ -219,16 +227,6 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
         refuse(offset, value, "not a geometry or meshing statement critfric allows, nor a "
                "variable assigned before")
     return found + _jump_refusals(text, tokens)
-
-
-def _redirects(tokens, i: int) -> bool:
-    """Whether the statement from tokens[i] to its ';' has a '>' (Printf(...) > "file")."""
-    for _, value, _ in tokens[i + 1:]:
-        if value == ";":
-            return False
-        if value == ">":
-            return True
-    return False
 
 
 def _assigns(tokens, i: int) -> bool:

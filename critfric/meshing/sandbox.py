@@ -52,6 +52,9 @@ MAX_INPUT_BYTES = 1 << 30  # a gmsh file larger than this is refused unread
 OUTPUT_BYTES = 4 << 30  # the largest file a child may write (its mesh.npz)
 _CAPTURE = 4000  # characters of a failed child's stderr quoted in the message
 GEOMETRY_SECONDS = 5.0  # wall time a .geo script's evaluation may take (before any meshing)
+# and its meshing: this plus so much a node of what the DOF guard allows (gmsh makes ~1e-5 s
+# a node in 2D; mesh-size fields that evaluate each other twice over took 2^k per point)
+MESHING_SECONDS, MESHING_SECONDS_PER_NODE = 6.0, {2: 1e-4, 3: 2e-4}
 WATCH_BYTES_PER_NODE = {2: 3072, 3: 6144}  # memory a meshing child may add per allowed node
 WATCH_SLACK_BYTES = 96 << 20  # and this much more whatever the allowance
 POLL_SECONDS = 0.05  # how often the parent looks at the child
@@ -124,7 +127,13 @@ def _watch(proc: subprocess.Popen, work: Path, job: dict, path: Path) -> bytes:
             base = _resident(proc.pid)
             dim = int(stage[-1]) if stage in ("meshing 2", "meshing 3") else None
             max_nodes = (job.get("max_nodes") or {}).get(str(dim))
-        if stage == "geometry" and now - since > GEOMETRY_SECONDS:
+        if max_nodes is not None and now - since > (
+                MESHING_SECONDS + MESHING_SECONDS_PER_NODE[dim] * float(max_nodes)):
+            why = (f"meshing {job.get('what', 'this gmsh script')} took more than "
+                   f"{MESHING_SECONDS + MESHING_SECONDS_PER_NODE[dim] * float(max_nodes):.3g} "
+                   f"s of wall time for at most {float(max_nodes):.3g} nodes and was stopped "
+                   "(mesh-size fields that evaluate each other over and over?)")
+        elif stage == "geometry" and now - since > GEOMETRY_SECONDS:
             why = (f"evaluating this gmsh script took more than {GEOMETRY_SECONDS:g} s of wall "
                    "time before any meshing and was stopped (an endless For loop, a recursive "
                    "macro?); allowed: a script whose geometry is built within "

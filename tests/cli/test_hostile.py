@@ -58,7 +58,7 @@ LEXER_ATTACKS = {  # a script whose words the check must split exactly as gmsh d
     "a single-quoted string": ("x = '\"'; SystemCall \"touch {p}\";", "SystemCall"),
     "no escapes in strings": ('x = "\\"; SystemCall "touch {p}"; y = "\\";', "SystemCall"),
     "a string gmsh cuts": ('x = "' + "a" * 1100 + 'SystemCall "touch {p}"; ";',
-                           "more than 1000 bytes"),
+                           "more than 256 bytes"),
     "a NUL in a string": ('x = "a\0"; SystemCall "touch {p}"; y = "";', "NUL"),
     "a keyword defined where gmsh does not parse": (
         'If (0) GetEnv = 1; EndIf\nx = GetEnv("HOME");', "GetEnv (a word of the gmsh language"),
@@ -210,6 +210,28 @@ def test_a_sidecar_option_file_is_never_read(tmp_path):
     res, _ = _run_file(tmp_path, "body.geo", SQUARE_GEO)
     assert res.exit_code == 0, res.output
     assert not p.exists()
+
+
+def test_size_fields_that_evaluate_each_other_are_stopped_within_seconds(tmp_path):
+    """Every word allowed, the geometry built at once: 59 Min fields, each of the one before
+    twice, cost 2^59 evaluations a point (70 s, to the CPU limit); the meshing stage has a
+    wall time of its own, scaled with the nodes --max-dofs allows."""
+    fields = ("Field[1] = Constant; Field[1].VIn = 0.25; Field[1].VOut = 0.25;\n"
+              "For k In {2:60}\n  Field[k] = Min; Field[k].FieldsList = {k-1, k-1};\nEndFor\n"
+              "Background Field = 60;\n")
+    start = time.monotonic()
+    res, before = _run_file(tmp_path, "body.geo", SQUARE_GEO + fields, "--max-dofs", "5000")
+    _refused(res, tmp_path, before, "body.geo", "meshing", "wall time")
+    assert time.monotonic() - start < 30
+
+
+def test_a_bare_carriage_return_is_refused():
+    """gmsh's reader ends a line at CR, its // comment does not: a For loop jumping back to
+    just after the CR would run what the check read as a comment."""
+    found = geoscript.refusals(SQUARE_GEO + 'For i In {1:2} // loop\r Printf("x") > "f";\n'
+                               "EndFor\n")
+    assert [w for _, w, _ in found] == ["CR"]
+    assert geoscript.refusals(SQUARE_GEO.replace("\n", "\r\n")) == []  # Windows line ends
 
 
 def test_an_endless_loop_is_stopped(tmp_path, monkeypatch):

@@ -92,9 +92,25 @@ For i In {1:3}
   x~{i} = i * 1.5e-3;
 EndFor
 Transfinite Curve{1} = 11; Recombine Surface{1};
-If (lc > 0.05) Printf("coarse"); EndIf
+If (lc > 0.05) Recombine Surface{1}; EndIf
 """
     assert refusals(text) == []
+
+
+@pytest.mark.parametrize("statement", ['Printf("%900.3g", 1);', 'Printf("%f", 1e300);',
+                                       'Printf("%g' + "A" * 900 + '", 1);', 'Printf("plain");'])
+def test_printf_is_refused(statement):
+    """gmsh formats Printf into 256-byte stack buffers, unchecked (a long format crashed the
+    meshing child with the script's bytes as the return address), and critfric shows none of
+    its output."""
+    assert "Printf" in [w for _, w, _ in refusals(SQUARE_GEO + statement)]
+
+
+def test_long_names_are_refused():
+    """gmsh writes "Unknown variable '<name>'" into a 1024-byte stack buffer, unchecked."""
+    name = "v" * 3000
+    found = refusals(SQUARE_GEO + f"If (0)\n{name} = 1;\nEndIf\nx = {name};\n")
+    assert found and all("more than 128 characters" in why for _, _, why in found)
 
 
 def test_refusals_are_found_anywhere_with_their_line():
