@@ -25,6 +25,11 @@ def main() -> None:
 
     sys.unraisablehook = unraisable
     try:  # from the first import on (a Ctrl-C landed in ``import signal`` before the try)
+        import signal
+
+        # a Ctrl-C during an import that C code turns into another error (numpy's import of
+        # datetime: "PyCapsule_Import could not import module") is still an interrupt
+        signal.signal(signal.SIGINT, _recording)
         from ..guards import keep_freed_memory
         from .app import app
 
@@ -37,7 +42,7 @@ def main() -> None:
     except KeyboardInterrupt:  # outside a command (start-up, option parsing)
         _interrupted("critfric: interrupted")
     except Exception as exc:
-        if _from_interrupt(exc):  # e.g. Python 3.11 wraps one raised in a class's
+        if _from_interrupt(exc) or _SIGINTS:  # e.g. Python 3.11 wraps one raised in a class's
             _interrupted("critfric: interrupted")  # __set_name__ (import platform) in a RuntimeError
         raise
     except SystemExit as exc:
@@ -52,6 +57,15 @@ def main() -> None:
     finally:
         sys.unraisablehook = previous
     _quiet()
+
+
+_SIGINTS: list[int] = []  # the Ctrl-Cs received since start-up
+
+
+def _recording(signum, frame) -> None:
+    """Python's own SIGINT handler (a KeyboardInterrupt), which also keeps a note of it."""
+    _SIGINTS.append(signum)
+    raise KeyboardInterrupt
 
 
 def _quiet() -> None:

@@ -87,6 +87,10 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
     elif kind in ("solve", "stability"):
         n, arrays = _mesh(f, dataset, bad, str(f.attrs["element"]), version)
         dim = arrays["mesh/points"].shape[1]
+        p = len(arrays["mesh/contact_nodes"])
+        if int(f.attrs["n_contact"]) != p:
+            raise bad("attribute 'n_contact'", f"{int(f.attrs['n_contact'])}, but the mesh has "
+                      f"{p} contact nodes")
         if kind == "solve":
             arrays.update({"critical/positive": dataset("critical/positive", "f", 1),
                            "critical/negative": dataset("critical/negative", "f", 1),

@@ -93,6 +93,7 @@ RESERVED = frozenset("""
 # messages (an unknown variable, a command) into 1024-byte buffers on the stack, unchecked:
 # names and strings are kept well below (the longest in gmsh's tutorials: 22 and 109)
 MAX_STRING, MAX_NAME = 256, 128
+MAX_INDEX_GROUPS = 4  # name~{i}~{j}...: each group adds up to 12 bytes ("_-2147483648")
 # gmsh skips a block it does not run (If, For, Macro) with a scanner of its own, which at each
 # E, I, F or R (the first letters of If, EndIf, Else, ElseIf, For, EndFor, Return) reads on
 # raw characters: the one right after such a letter is lost when no word matches, and the
@@ -171,6 +172,17 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
         if len(value) > MAX_NAME:
             refuse(offset, value[:20] + "...", f"a name of more than {MAX_NAME} characters")
             continue
+        groups, j = 0, i + 1  # name~{a}~{b}...: gmsh builds name_a_b... (no other way grows one)
+        while j + 1 < len(tokens) and tokens[j][1] == "~" and tokens[j + 1][1] == "{":
+            depth, j, groups = 0, j + 1, groups + 1
+            while j < len(tokens):
+                depth += {"{": 1, "}": -1}.get(tokens[j][1], 0)
+                j += 1
+                if depth == 0:
+                    break
+        if groups > MAX_INDEX_GROUPS:
+            refuse(offset, value + "~{...}", f"a name with more than {MAX_INDEX_GROUPS} ~{{}} "
+                   "indices (gmsh quotes the name it builds in a 1024-byte buffer)")
         before = tokens[i - 1][1] if i else ""
         after = tokens[i + 1][1] if i + 1 < len(tokens) else ""
         if before == "." and (i in field_options or i >= 2 and tokens[i - 2][1] in OPTIONS):

@@ -107,10 +107,14 @@ def test_printf_is_refused(statement):
 
 
 def test_long_names_are_refused():
-    """gmsh writes "Unknown variable '<name>'" into a 1024-byte stack buffer, unchecked."""
+    """gmsh writes "Unknown variable '<name>'" into a 1024-byte stack buffer, unchecked: a
+    long name, or one built of many ~{} indices, overwrote the child's return addresses."""
     name = "v" * 3000
     found = refusals(SQUARE_GEO + f"If (0)\n{name} = 1;\nEndIf\nx = {name};\n")
     assert found and all("more than 128 characters" in why for _, _, why in found)
+    built = "a = 1;\nb = a" + "~{1000000000}" * 120 + ";\n"
+    assert [w for _, w, _ in refusals(SQUARE_GEO + built)] == ["a~{...}"]
+    assert refusals(SQUARE_GEO + "For i In {1:2}\n  x~{i}~{i} = i;\nEndFor\n") == []
 
 
 def test_refusals_are_found_anywhere_with_their_line():
