@@ -204,9 +204,8 @@ def prepare(case: Case, *, max_dofs: int | None = None, trust_geo: bool = False,
             K_lam, K_G = assemble_stiffness(mesh, *single, on_pattern=on_pattern), None
         t3 = time.perf_counter()
         # checked once the analysis has started (beside it), the mesh's diameter made there
-        dirichlet = [name for name in case.boundary["dirichlet"] if name in mesh.facets]
-        if dirichlet:  # unknown names are reported by contact_layout
-            check_held(mesh, _facet_nodes(mesh, dirichlet), source=case.source)
+        if len(held):  # unknown names are reported by contact_layout
+            check_held(mesh, held, source=case.source)
         _ = mesh.diameter
         if mesh.dim == 3:
             system = contact_system3d(mesh, K_lam, K_G, contact=case.boundary["contact"],

@@ -10,6 +10,14 @@ import numpy as np
 from . import solids  # noqa: F401  (registers the 3D elements that Mesh.fe looks up)
 from .elements import get_element
 
+MAX_GROUP_NAME = 200  # characters of a boundary group's name
+
+
+def group_name_ok(name) -> bool:
+    """Whether ``name`` can name a boundary group: 1 to MAX_GROUP_NAME printable characters
+    (names reach messages, terminals and result files)."""
+    return isinstance(name, str) and 0 < len(name) <= MAX_GROUP_NAME and name.isprintable()
+
 
 @dataclass(frozen=True)
 class Mesh:

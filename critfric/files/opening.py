@@ -46,7 +46,7 @@ def kind_of(f: h5py.File) -> str | None:
         value = value.item()
     if not isinstance(value, (str, bytes)) or len(value) > 64:
         return None
-    text = _text(value)
+    text = text_of(value)
     return text if text.isprintable() else None
 
 
@@ -91,5 +91,6 @@ def check_storage(f: h5py.File, bad, size: int) -> None:
         raise bad(*problem)
 
 
-def _text(value) -> str:
+def text_of(value) -> str:
+    """An attribute's text (bytes decoded)."""
     return value.decode(errors="replace") if isinstance(value, bytes) else str(value)

@@ -49,7 +49,7 @@ import numpy as np
 
 from .._version import __version__
 from ..errors import CaseError, WriteError
-from .opening import kind_of, open_file
+from .opening import kind_of, open_file, text_of
 from .results import file_attrs
 from .safety import NO_ROOM, check_output, held, write_whole
 from .validate import SCHEMA_VERSION
@@ -139,8 +139,7 @@ def _growable(ds) -> bool:
 
 def _same_text(value, text: str) -> bool:
     """Whether an attribute is the string ``text`` (an array or a number is not)."""
-    return isinstance(value, (str, bytes)) and \
-        (value.decode(errors="replace") if isinstance(value, bytes) else value) == text
+    return isinstance(value, (str, bytes)) and text_of(value) == text
 
 
 @contextmanager

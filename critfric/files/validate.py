@@ -16,7 +16,8 @@ import numpy as np
 from ..errors import CaseError
 from ..fem.contact3d import LAWS
 from ..fem.elements import NAMES, get_element
-from .opening import check_storage
+from ..fem.mesh import MAX_GROUP_NAME, group_name_ok
+from .opening import check_storage, text_of
 
 SCHEMA_VERSION = 2  # the layout of the 2D files critfric writes (solve, sweep, stability, path)
 SOLID_VERSION = 3  # the layout of a 3D solve file: points (n, 3), faces, r, slip directions
@@ -146,7 +147,7 @@ def check(f: h5py.File, kind: str, path: Path) -> None:
             rows = len(values) if rows is None else rows
             if len(values) != rows:
                 raise bad(f"dataset 'points/{name}'", f"{len(values)} rows, not {rows}")
-            if name == "element" and not all(_text(v) in NAMES for v in values):
+            if name == "element" and not all(text_of(v) in NAMES for v in values):
                 raise bad("dataset 'points/element'", "an unknown element")
             if name == "nu" and not np.all(np.isfinite(values)):
                 raise bad("dataset 'points/nu'", "values that are not finite")
@@ -177,9 +178,9 @@ def _mesh(f: h5py.File, dataset, bad, element: str, version: int) -> tuple[int, 
             raise bad(f"group 'mesh/{kind}'", f"boundary {kind} in a {dim}D mesh (its boundary "
                       f"groups are {other if dim == 2 else kind})")
         for name in names:
-            if not (name.isprintable() and len(name) <= 200):
-                raise bad(f"a group of 'mesh/{kind}'", f"name {name[:200]!r}, not printable "
-                          "text")
+            if not group_name_ok(name):
+                raise bad(f"a group of 'mesh/{kind}'", f"name {name[:MAX_GROUP_NAME]!r}, not "
+                          "printable text")
             arrays[f"mesh/{kind}/{name}"] = dataset(f"mesh/{kind}/{name}", "iu", 2,
                                                     spec.facet_nodes)
     if "mesh/slip" in f:
@@ -206,7 +207,7 @@ def _check_frame(f: h5py.File, dataset, bad, arrays: dict, dim: int) -> None:
         raise bad("attribute 'tangent'", "not orthogonal to the normal")
     if dim == 2:
         return
-    if _text(f.attrs.get("law", "")) not in LAWS:
+    if text_of(f.attrs.get("law", "")) not in LAWS:
         raise bad("attribute 'law'", "missing or not one of " + ", ".join(LAWS))
     if not _attr_ok(f.attrs.get("slip_angle"), "float"):
         raise bad("attribute 'slip_angle'", "missing or not a finite number")
@@ -244,7 +245,7 @@ def _check_path(f: h5py.File, dataset, bad, version: int) -> None:
     p, node = int(f.attrs["n_contact"]), int(f.attrs["node"])
     if p < 0 or not (0 <= node < p or node == p == 0):
         raise bad("attribute 'node'", f"{node}, not a contact node of [0, {p})")
-    if _text(f.attrs["parameter"]) not in PARAMETERS:
+    if text_of(f.attrs["parameter"]) not in PARAMETERS:
         raise bad("attribute 'parameter'", "not one of " + ", ".join(PARAMETERS))
     finite = {"samples": dataset("samples", "f", 1)}
     finite["contact/s"] = dataset("contact/s", "f", 1)
@@ -301,11 +302,11 @@ def _check_path(f: h5py.File, dataset, bad, version: int) -> None:
     m = len(finite["events/value"])
     optional("events/critical", m)
     rows("events/unbounded", "b", m)
-    if not all(_text(v) in EVENT_KINDS for v in rows("events/kind", "OSU", m)):
+    if not all(text_of(v) in EVENT_KINDS for v in rows("events/kind", "OSU", m)):
         raise bad("dataset 'events/kind'", "not one of " + ", ".join(EVENT_KINDS))
     for name, bound in (("nodes", p), ("curves", len(curves)), ("states", None)):
         for text in rows(f"events/{name}", "OSU", m):
-            if not _json_list(_text(text), bound, p):
+            if not _json_list(text_of(text), bound, p):
                 raise bad(f"dataset 'events/{name}'", "an entry that is not a JSON list of "
                           + ("status lists" if bound is None else f"indices in [0, {bound})"))
     points("isolated")
@@ -316,7 +317,7 @@ def _check_path(f: h5py.File, dataset, bad, version: int) -> None:
         element = f["mesh/cells"].attrs.get("element") if "mesh/cells" in f else None
         if not _attr_ok(element, "element"):
             raise bad("attribute 'element' of dataset 'mesh/cells'", "missing or unknown")
-        n, arrays = _mesh(f, dataset, bad, _text(element), version)
+        n, arrays = _mesh(f, dataset, bad, text_of(element), version)
         if len(arrays["mesh/contact_nodes"]) != p:
             raise bad("dataset 'mesh/contact_nodes'", f"not {p} nodes")
         _finite_indices(arrays, n, bad)
@@ -346,10 +347,6 @@ def _number_ok(value, bounds, *, optional: bool = False) -> bool:
     return bounds is None or bounds[0] <= float(value) <= bounds[1]
 
 
-def _text(value) -> str:
-    return value.decode(errors="replace") if isinstance(value, bytes) else str(value)
-
-
 def _attr_ok(value, want: str) -> bool:
     if value is None:
         return False
@@ -372,7 +369,7 @@ def _attr_ok(value, want: str) -> bool:
             and not isinstance(value, bool) and math.isfinite(float(value))
     if not isinstance(value, (str, bytes)):
         return False
-    text = _text(value)
+    text = text_of(value)
     if want == "element":
         return text in NAMES
     if want == "toml":
@@ -388,7 +385,7 @@ def _attr_ok(value, want: str) -> bool:
 def _printable(value) -> bool:
     """True if every string in ``value`` (a string, bytes, or JSON data) is printable."""
     if isinstance(value, bytes):
-        value = _text(value)
+        value = text_of(value)
     if isinstance(value, str):
         return value.isprintable()
     if isinstance(value, dict):

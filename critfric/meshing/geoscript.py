@@ -220,7 +220,7 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
         if i >= 2 and tokens[i - 1][1] == "=" and tokens[i - 2][1] == "]" \
                 and value in FIELD_TYPES:
             continue  # the type of a field, checked above
-        if value in KNOWN and value not in defined:
+        if value in KNOWN:  # refused where first met, so never defined
             refuse(offset, value, KNOWN[value])
             continue
         if value in STATEMENTS or value in FUNCTIONS or value in defined:
@@ -238,7 +238,7 @@ def refusals(text: str) -> list[tuple[int, str, str]]:
             continue
         refuse(offset, value, "not a geometry or meshing statement critfric allows, nor a "
                "variable assigned before")
-    return found + _jump_refusals(text, tokens)
+    return found + _jump_refusals(text, tokens, newlines)
 
 
 def _assigns(tokens, i: int) -> bool:
@@ -270,14 +270,14 @@ MAX_JUMP_LINE = 4000  # gmsh reads a line in chunks of 8192 bytes or more
 JUMPS = ("For", "EndFor", "Macro", "Function", "Call", "Return")
 
 
-def _jump_refusals(text: str, tokens: list) -> list[tuple[int, str, str]]:
+def _jump_refusals(text: str, tokens: list, newlines: list[int]
+                   ) -> list[tuple[int, str, str]]:
     """gmsh reads a script a line at a time; a For header and a Macro (Function) name keep
     where the next line starts, and EndFor, Call and Return jump back there, or to the line
     after the Call, without dropping the rest of the line being read: that rest is read
     before another line than in the file (a /* comment or a string then spans other text, a
     statement gets other words). So each of them must end its line (a // comment may follow),
-    on a line short enough to be read whole."""
-    newlines = [m.start() for m in re.finditer("\n", text)]
+    on a line short enough to be read whole. ``newlines``: the offsets of the line breaks."""
     found = []
     after = "text after it on its line (gmsh re-reads lines there: put it at the end of its line)"
     long = f"on a line of more than {MAX_JUMP_LINE} bytes (gmsh reads such a line in pieces)"

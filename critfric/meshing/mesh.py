@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import CaseError, CritfricError, SolverError
 from ..fem.arrays import distinct, unused_nodes
 from ..fem.elements import get_element
-from ..fem.mesh import Mesh, orient
+from ..fem.mesh import MAX_GROUP_NAME, Mesh, group_name_ok, orient
 from .cells3d import index_array as _index_array
 from .geometry import Polygon, positive_number, validate
 from .overlap import check_tiling_2d
@@ -29,17 +29,15 @@ from .singular import singular_points, split_at_junctions
 #: also ~10x faster than gmsh at the same size.
 NEST_FRACTION = 1 / 32
 MIN_QUALITY = 1e-6  # inline and file meshes: area / longest edge^2 of every cell at least this
-MAX_NAME = 200  # characters of a physical group's name
 
 
 def check_group_names(names, path) -> None:
-    """Refuse a physical group name of a gmsh file that is not short printable text (names
-    reach messages, terminals and result files)."""
+    """Refuse a physical group name of a gmsh file that cannot name a boundary group."""
     for name in names:
-        if not (isinstance(name, str) and 0 < len(name) <= MAX_NAME and name.isprintable()):
-            raise CaseError(f"physical group name {str(name)[:MAX_NAME]!r} is not printable "
-                            f"text; allowed: names of 1 to {MAX_NAME} printable characters",
-                            file=str(path), key="geometry.file")
+        if not group_name_ok(name):
+            raise CaseError(f"physical group name {str(name)[:MAX_GROUP_NAME]!r} is not "
+                            f"printable text; allowed: names of 1 to {MAX_GROUP_NAME} "
+                            "printable characters", file=str(path), key="geometry.file")
 
 
 # ---------------------------------------------------------------------------------------------
